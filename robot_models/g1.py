@@ -1,0 +1,158 @@
+"""Unitree G1 (29 DoF) on a floor, built from example-robot-data's URDF.
+
+Changes against the URDF as shipped:
+- the floating base block (commented out in the URDF) is restored, so the pelvis has a free joint;
+- the mesh collision geoms and the four 5 mm foot spheres are replaced by one box sole per foot
+  (0.20 x 0.07 m, like the real sole); visual meshes are kept for rendering, without contacts;
+- a floor, a light, sole/hand/IMU sites, joint armature and damping, position servos with gains
+  that hold a stand (hip/knee 500, hip yaw 350, ankle 300, kd = 0.03 kp; waist and arms 150/3);
+- physics: 2 ms step, implicitfast, elliptic friction cone with impratio 10;
+- a ``stand`` keyframe in a slight crouch with both soles flat on the floor.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from robot_models import g1_constants as names
+from robot_models.spec import RobotSpec, add_position_actuator, joint_limits_of, read_urdf
+
+PHYSICS_TIMESTEP_S = 0.002
+CONTROL_DECIMATION = 2  # 250 Hz control
+
+# Standing crouch [rad]: hip pitch, knee, ankle pitch per leg.
+STAND_HIP_PITCH = -0.3
+STAND_KNEE = 0.6
+STAND_ANKLE_PITCH = -0.3
+STAND_ARM_POSE = {"shoulder_roll": 0.25, "elbow": 0.9}
+
+LEG_GAINS = {"hip_pitch": 500.0, "hip_roll": 500.0, "hip_yaw": 350.0, "knee": 500.0, "ankle_pitch": 300.0, "ankle_roll": 300.0}
+UPPER_BODY_KP = 150.0
+UPPER_BODY_KV = 3.0
+KD_OVER_KP = 0.03
+
+
+def _gain_for(joint: str) -> tuple[float, float]:
+    for key, kp in LEG_GAINS.items():
+        if f"_{key}_joint" in joint:
+            return kp, KD_OVER_KP * kp
+    return UPPER_BODY_KP, UPPER_BODY_KV
+
+
+def _restore_floating_base(urdf: str) -> str:
+    opening = '<!-- <link name="world"></link>'
+    if opening not in urdf:
+        raise ValueError("G1 URDF layout changed: the commented floating-base block was not found")
+    urdf = urdf.replace(opening, '<link name="world"></link>', 1)
+    return urdf.replace("</joint> -->", "</joint>", 1)
+
+
+def build_spec() -> mujoco.MjSpec:
+    """The G1 scene as an editable spec (not compiled)."""
+    spec = mujoco.MjSpec.from_string(_restore_floating_base(read_urdf(names.URDF_RELATIVE_PATH, keep_visuals=True)))
+    spec.modelname = names.ROBOT_NAME
+    spec.option.timestep = PHYSICS_TIMESTEP_S
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    spec.option.impratio = 10.0
+
+    # Replace collision geoms (group 0) with box soles; visuals (group 1) never collide.
+    for geom in list(spec.geoms):
+        if geom.contype != 0 or geom.conaffinity != 0:
+            spec.delete(geom)
+        else:
+            geom.group = 1
+    for foot_body, geom_name, site_name in (
+        (names.LEFT_FOOT_BODY, names.LEFT_SOLE_GEOM, names.LEFT_SOLE_SITE),
+        (names.RIGHT_FOOT_BODY, names.RIGHT_SOLE_GEOM, names.RIGHT_SOLE_SITE),
+    ):
+        body = spec.body(foot_body)
+        body.add_geom(
+            name=geom_name,
+            type=mujoco.mjtGeom.mjGEOM_BOX,
+            size=list(names.SOLE_HALF_SIZE),
+            pos=list(names.SOLE_CENTER_IN_FOOT),
+            friction=[1.0, 0.02, 0.001],
+            condim=3,
+            contype=1,
+            conaffinity=1,
+            group=0,
+            rgba=[0.15, 0.15, 0.15, 1.0],
+            mass=0.0,
+        )
+        body.add_site(name=site_name, pos=list(names.SOLE_SITE_IN_FOOT), size=[0.01, 0.01, 0.01])
+    spec.body(names.LEFT_HAND_BODY).add_site(name=names.LEFT_HAND_SITE, pos=list(names.HAND_SITE_IN_WRIST), size=[0.01] * 3)
+    spec.body(names.RIGHT_HAND_BODY).add_site(name=names.RIGHT_HAND_SITE, pos=list(names.HAND_SITE_IN_WRIST), size=[0.01] * 3)
+    spec.body(names.ROOT_BODY).add_site(name=names.IMU_SITE, pos=list(names.IMU_SITE_IN_PELVIS), size=[0.01] * 3)
+
+    world = spec.worldbody
+    world.add_geom(
+        name=names.FLOOR_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05],
+        friction=[1.0, 0.02, 0.001], rgba=[0.55, 0.6, 0.65, 1.0], contype=1, conaffinity=1,
+    )
+    world.add_light(pos=[0, 0, 4], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
+    world.add_camera(name="track", pos=[2.2, -2.2, 1.4], xyaxes=[0.707, 0.707, 0, -0.25, 0.25, 0.93],
+                     mode=mujoco.mjtCamLight.mjCAMLIGHT_TRACKCOM)
+
+    for joint in spec.joints:
+        if joint.type == mujoco.mjtJoint.mjJNT_HINGE:
+            joint.armature = 0.01
+            joint.damping = [0.5, 0.0, 0.0]
+    for joint in names.ALL_JOINTS:
+        kp, kv = _gain_for(joint)
+        add_position_actuator(spec, joint, kp=kp, kv=kv, force_limit=None)
+    return spec
+
+
+def _stand_qpos(model: mujoco.MjModel) -> np.ndarray:
+    """Crouched stance with both sole sites on the floor, pelvis above the soles' midpoint."""
+    data = mujoco.MjData(model)
+    qpos = model.qpos0.copy()
+    base = model.joint(model.body(names.ROOT_BODY).jntadr[0])
+    adr = int(base.qposadr[0])
+    qpos[adr : adr + 7] = [0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0]
+    for side in ("left", "right"):
+        qpos[model.joint(f"{side}_hip_pitch_joint").qposadr[0]] = STAND_HIP_PITCH
+        qpos[model.joint(f"{side}_knee_joint").qposadr[0]] = STAND_KNEE
+        qpos[model.joint(f"{side}_ankle_pitch_joint").qposadr[0]] = STAND_ANKLE_PITCH
+        sign = 1.0 if side == "left" else -1.0
+        qpos[model.joint(f"{side}_shoulder_roll_joint").qposadr[0]] = sign * STAND_ARM_POSE["shoulder_roll"]
+        qpos[model.joint(f"{side}_elbow_joint").qposadr[0]] = STAND_ARM_POSE["elbow"]
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    sole_z = min(data.site(names.LEFT_SOLE_SITE).xpos[2], data.site(names.RIGHT_SOLE_SITE).xpos[2])
+    qpos[adr + 2] -= sole_z
+    return qpos
+
+
+def load() -> RobotSpec:
+    """Build and compile the G1 scene."""
+    spec = build_spec()
+    model = spec.compile()
+    qpos = _stand_qpos(model)
+    ctrl = np.array([qpos[model.joint(j).qposadr[0]] for j in names.ALL_JOINTS])
+    spec.add_key(name=names.STAND_KEYFRAME, qpos=qpos.tolist(), ctrl=ctrl.tolist())
+    model = spec.compile()
+    return RobotSpec(
+        name=names.ROBOT_NAME,
+        mjspec=spec,
+        model=model,
+        joint_groups={
+            "left_leg": names.LEFT_LEG_JOINTS,
+            "right_leg": names.RIGHT_LEG_JOINTS,
+            "waist": names.WAIST_JOINTS,
+            "left_arm": names.LEFT_ARM_JOINTS,
+            "right_arm": names.RIGHT_ARM_JOINTS,
+        },
+        actuated_joints=names.ALL_JOINTS,
+        end_effector_sites={"left_arm": names.LEFT_HAND_SITE, "right_arm": names.RIGHT_HAND_SITE},
+        default_end_effector="right_arm",
+        feet_sites=names.FEET_SITES,
+        base_body=names.ROOT_BODY,
+        floating_base=True,
+        keyframes=(names.STAND_KEYFRAME,),
+        default_keyframe=names.STAND_KEYFRAME,
+        joint_limits=joint_limits_of(model, names.ALL_JOINTS),
+        control_decimation=CONTROL_DECIMATION,
+    )

@@ -1,0 +1,62 @@
+"""Every MJCF name of the Unitree G1 (29 DoF) model, in one place.
+
+Names come from example-robot-data's ``g1_29dof_rev_1_0.urdf``; the sites, the floor and the
+sole geoms are added by :mod:`robot_models.g1`.
+"""
+
+from __future__ import annotations
+
+from typing import Final
+
+ROBOT_NAME: Final = "g1"
+URDF_RELATIVE_PATH: Final = "g1_description/urdf/g1_29dof_rev_1_0.urdf"
+
+ROOT_BODY: Final = "pelvis"
+TORSO_BODY: Final = "torso_link"
+FLOOR_GEOM: Final = "floor"
+
+LEFT_LEG_JOINTS: Final = (
+    "left_hip_pitch_joint",
+    "left_hip_roll_joint",
+    "left_hip_yaw_joint",
+    "left_knee_joint",
+    "left_ankle_pitch_joint",
+    "left_ankle_roll_joint",
+)
+RIGHT_LEG_JOINTS: Final = tuple(name.replace("left_", "right_") for name in LEFT_LEG_JOINTS)
+WAIST_JOINTS: Final = ("waist_yaw_joint", "waist_roll_joint", "waist_pitch_joint")
+LEFT_ARM_JOINTS: Final = (
+    "left_shoulder_pitch_joint",
+    "left_shoulder_roll_joint",
+    "left_shoulder_yaw_joint",
+    "left_elbow_joint",
+    "left_wrist_roll_joint",
+    "left_wrist_pitch_joint",
+    "left_wrist_yaw_joint",
+)
+RIGHT_ARM_JOINTS: Final = tuple(name.replace("left_", "right_") for name in LEFT_ARM_JOINTS)
+ALL_JOINTS: Final = LEFT_LEG_JOINTS + RIGHT_LEG_JOINTS + WAIST_JOINTS + LEFT_ARM_JOINTS + RIGHT_ARM_JOINTS
+
+LEFT_FOOT_BODY: Final = "left_ankle_roll_link"
+RIGHT_FOOT_BODY: Final = "right_ankle_roll_link"
+LEFT_SOLE_SITE: Final = "left_sole"
+RIGHT_SOLE_SITE: Final = "right_sole"
+LEFT_SOLE_GEOM: Final = "left_sole_box"
+RIGHT_SOLE_GEOM: Final = "right_sole_box"
+FEET_SITES: Final = (LEFT_SOLE_SITE, RIGHT_SOLE_SITE)
+IMU_SITE: Final = "imu"
+
+LEFT_HAND_BODY: Final = "left_wrist_yaw_link"
+RIGHT_HAND_BODY: Final = "right_wrist_yaw_link"
+LEFT_HAND_SITE: Final = "left_hand"
+RIGHT_HAND_SITE: Final = "right_hand"
+
+STAND_KEYFRAME: Final = "stand"
+
+# Sole box in the ankle-roll link frame [m]: centre and half sizes. The URDF's contact spheres sit
+# at x in [-0.05, 0.12], y in +-0.03, z = -0.035 (bottom); a real G1 sole is about 0.20 x 0.07 m.
+SOLE_CENTER_IN_FOOT: Final = (0.035, 0.0, -0.030)
+SOLE_HALF_SIZE: Final = (0.100, 0.035, 0.005)
+SOLE_SITE_IN_FOOT: Final = (0.035, 0.0, -0.035)
+HAND_SITE_IN_WRIST: Final = (0.10, 0.0, 0.0)
+IMU_SITE_IN_PELVIS: Final = (0.04525, 0.0, -0.08339)

@@ -1,0 +1,125 @@
+"""Franka Panda on a table with three graspable boxes, built from example-robot-data's URDF.
+
+Changes against the URDF as shipped:
+- both finger joints get their own position servo (the URDF mimic becomes a soft joint equality
+  that lets the grasp go asymmetric, so it is removed);
+- a ``tcp`` site 0.1034 m along the hand's z axis, gravity compensation on the arm links (as the
+  real robot's controller does), arm position servos (kp 4500..2000);
+- a table whose top is the plane z = 0 under the arm's base, a floor, a light, three 4 cm boxes;
+- contact settings that hold a friction grasp: elliptic cone, impratio 10, condim 4 and a stiff
+  ``solref`` on finger pads and boxes;
+- a ``home`` keyframe with the fingers open and the boxes on the table.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from robot_models import panda_constants as names
+from robot_models.spec import RobotSpec, add_position_actuator, joint_limits_of, read_urdf
+
+PHYSICS_TIMESTEP_S = 0.002
+CONTROL_DECIMATION = 2  # 250 Hz control
+ARM_KP = (4500.0, 4500.0, 3500.0, 3500.0, 2000.0, 2000.0, 2000.0)
+ARM_DAMPRATIO = 1.0
+FINGER_KP = 1000.0
+FINGER_KV = 50.0
+FINGER_FORCE_LIMIT_N = 70.0
+CONTACT_SOLREF = [0.004, 1.0]
+GRASP_FRICTION = [1.0, 0.02, 0.001]
+
+
+def build_spec() -> mujoco.MjSpec:
+    """The Panda scene as an editable spec (not compiled)."""
+    urdf = read_urdf(names.URDF_RELATIVE_PATH, keep_visuals=False)
+    # Keep the fixed links (panda_link0, panda_hand) as bodies so their names exist in the model.
+    urdf = urdf.replace("</robot>", '<mujoco><compiler fusestatic="false"/></mujoco></robot>')
+    spec = mujoco.MjSpec.from_string(urdf)
+    spec.modelname = names.ROBOT_NAME
+    spec.option.timestep = PHYSICS_TIMESTEP_S
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    spec.option.impratio = 10.0
+
+    for equality in list(spec.equalities):
+        spec.delete(equality)
+    for body in spec.bodies:
+        if body.name.startswith("panda_link") or body.name == names.HAND_BODY:
+            body.gravcomp = 1.0
+    for body_name in (names.LEFT_FINGER_BODY, names.RIGHT_FINGER_BODY):
+        for geom in spec.body(body_name).geoms:
+            geom.condim = 4
+            geom.solref = CONTACT_SOLREF
+            geom.friction = GRASP_FRICTION
+            geom.rgba = [0.25, 0.25, 0.25, 1.0]
+    for geom in spec.geoms:
+        if geom.rgba[0] == 0.5 and geom.rgba[1] == 0.5 and geom.rgba[2] == 0.5:
+            geom.rgba = [0.92, 0.92, 0.92, 1.0]
+    spec.body(names.HAND_BODY).add_site(name=names.TCP_SITE, pos=list(names.TCP_IN_HAND), size=[0.005] * 3)
+
+    world = spec.worldbody
+    world.add_geom(name=names.FLOOR_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05],
+                   pos=[0, 0, -2 * names.TABLE_HALF_SIZE[2]], rgba=[0.55, 0.6, 0.65, 1.0])
+    table = world.add_body(name=names.TABLE_BODY, pos=list(names.TABLE_CENTER))
+    table.add_geom(name=names.TABLE_GEOM, type=mujoco.mjtGeom.mjGEOM_BOX, size=list(names.TABLE_HALF_SIZE),
+                   rgba=[0.55, 0.4, 0.25, 1.0], friction=GRASP_FRICTION)
+    world.add_light(pos=[0.5, 0, 2.5], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
+    world.add_camera(name="track", pos=[1.6, -1.0, 0.9], xyaxes=[0.53, 0.85, 0, -0.35, 0.22, 0.91])
+    for box_name, position, color in zip(names.BOX_NAMES, names.BOX_HOME_POSITIONS, names.BOX_COLORS):
+        box = world.add_body(name=box_name, pos=list(position))
+        box.add_freejoint(name=box_name)
+        half = names.BOX_HALF_SIZE
+        box.add_geom(name=box_name, type=mujoco.mjtGeom.mjGEOM_BOX, size=[half, half, half], mass=names.BOX_MASS,
+                     condim=4, solref=CONTACT_SOLREF, friction=GRASP_FRICTION, rgba=list(color))
+
+    arm_joints = {joint.name: joint for joint in spec.joints}
+    for joint_name in names.ARM_JOINTS + names.FINGER_JOINTS:
+        arm_joints[joint_name].armature = 0.1 if joint_name in names.ARM_JOINTS else 0.0
+        arm_joints[joint_name].damping = [1.0 if joint_name in names.ARM_JOINTS else 0.0, 0.0, 0.0]
+    for joint_name, kp in zip(names.ARM_JOINTS, ARM_KP):
+        actuator = spec.add_actuator(name=joint_name, target=joint_name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        actuator.set_to_position(kp=kp, dampratio=ARM_DAMPRATIO)
+        actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+    for joint_name in names.FINGER_JOINTS:
+        add_position_actuator(spec, joint_name, kp=FINGER_KP, kv=FINGER_KV, force_limit=FINGER_FORCE_LIMIT_N)
+    return spec
+
+
+def _home_qpos(model: mujoco.MjModel) -> np.ndarray:
+    qpos = model.qpos0.copy()
+    for joint_name, value in zip(names.ARM_JOINTS, names.HOME_ARM_QPOS):
+        qpos[model.joint(joint_name).qposadr[0]] = value
+    for joint_name in names.FINGER_JOINTS:
+        qpos[model.joint(joint_name).qposadr[0]] = names.FINGER_OPEN
+    for box_name, position in zip(names.BOX_NAMES, names.BOX_HOME_POSITIONS):
+        adr = int(model.joint(box_name).qposadr[0])
+        qpos[adr : adr + 7] = [*position, 1.0, 0.0, 0.0, 0.0]
+    return qpos
+
+
+def load() -> RobotSpec:
+    """Build and compile the Panda scene."""
+    spec = build_spec()
+    model = spec.compile()
+    qpos = _home_qpos(model)
+    ctrl = [qpos[model.joint(j).qposadr[0]] for j in names.ALL_JOINTS]
+    spec.add_key(name=names.HOME_KEYFRAME, qpos=qpos.tolist(), ctrl=ctrl)
+    model = spec.compile()
+    return RobotSpec(
+        name=names.ROBOT_NAME,
+        mjspec=spec,
+        model=model,
+        joint_groups={"arm": names.ARM_JOINTS, "gripper": names.FINGER_JOINTS},
+        actuated_joints=names.ALL_JOINTS,
+        end_effector_sites={"arm": names.TCP_SITE},
+        default_end_effector="arm",
+        feet_sites=(),
+        base_body=names.ROOT_BODY,
+        floating_base=False,
+        keyframes=(names.HOME_KEYFRAME,),
+        default_keyframe=names.HOME_KEYFRAME,
+        joint_limits=joint_limits_of(model, names.ALL_JOINTS),
+        control_decimation=CONTROL_DECIMATION,
+        objects=names.BOX_NAMES,
+    )

@@ -1,0 +1,130 @@
+"""Typed description of a robot scene: the compiled model plus the names that matter."""
+
+from __future__ import annotations
+
+import pathlib
+import sys
+from dataclasses import dataclass, field
+
+import mujoco
+
+
+class RobotModelError(Exception):
+    """Base error of the robot model layer."""
+
+
+class UnknownRobotError(RobotModelError, KeyError):
+    """Raised by :func:`robot_models.load` for a name that is not registered."""
+
+
+@dataclass(frozen=True)
+class JointLimits:
+    """Position limits [rad or m] and effort limits [N m or N] of one joint."""
+
+    lower: float
+    upper: float
+    effort: float
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """A robot scene ready to simulate.
+
+    Attributes:
+        name: registry name (``"g1"``, ``"panda"``).
+        mjspec: the editable MuJoCo spec the model was compiled from.
+        model: the compiled model (physics timestep in ``model.opt.timestep`` [s]).
+        joint_groups: named groups of actuated joint names, e.g. ``"left_leg"``.
+        actuated_joints: every actuated joint, in actuator order.
+        end_effector_sites: arm name -> site name of its tool point.
+        default_end_effector: arm name used when a goal leaves it empty.
+        feet_sites: sole sites (empty for a fixed-base arm).
+        base_body: the floating base body, or the fixed root link.
+        floating_base: whether ``base_body`` has a free joint.
+        keyframes: names of the keyframes in the model.
+        default_keyframe: keyframe used at start-up and by reset.
+        joint_limits: joint name -> limits.
+        control_decimation: physics steps per control step (control period = decimation * timestep).
+        objects: names of free bodies a user may manipulate (boxes).
+    """
+
+    name: str
+    mjspec: mujoco.MjSpec
+    model: mujoco.MjModel
+    joint_groups: dict[str, tuple[str, ...]]
+    actuated_joints: tuple[str, ...]
+    end_effector_sites: dict[str, str]
+    default_end_effector: str
+    feet_sites: tuple[str, ...]
+    base_body: str
+    floating_base: bool
+    keyframes: tuple[str, ...]
+    default_keyframe: str
+    joint_limits: dict[str, JointLimits]
+    control_decimation: int
+    objects: tuple[str, ...] = field(default=())
+
+    @property
+    def physics_timestep(self) -> float:
+        """Physics step [s]."""
+        return float(self.model.opt.timestep)
+
+    @property
+    def control_timestep(self) -> float:
+        """Control step [s], a whole multiple of the physics step."""
+        return self.physics_timestep * self.control_decimation
+
+
+def example_robot_data_root() -> pathlib.Path:
+    """Folder holding example-robot-data's ``robots/`` tree (installed by the cmeel wheel)."""
+    for site in map(pathlib.Path, sys.path):
+        candidate = site / "cmeel.prefix" / "share" / "example-robot-data" / "robots"
+        if candidate.is_dir():
+            return candidate
+    raise RobotModelError(
+        "example-robot-data is not installed: no cmeel.prefix/share/example-robot-data/robots on sys.path"
+    )
+
+
+def read_urdf(relative_path: str, keep_visuals: bool) -> str:
+    """Read a URDF from example-robot-data with its mesh paths made absolute.
+
+    Args:
+        relative_path: path below ``robots/``.
+        keep_visuals: keep visual-only geoms (MuJoCo's URDF importer drops them by default).
+    """
+    root = example_robot_data_root()
+    text = (root / relative_path).read_text()
+    text = text.replace("package://example-robot-data/robots/", f"{root}/")
+    text = text.replace("package://", f"{root}/")
+    if keep_visuals:
+        text = text.replace("</robot>", '<mujoco><compiler discardvisual="false"/></mujoco></robot>')
+    return text
+
+
+def joint_limits_of(model: mujoco.MjModel, joints: tuple[str, ...]) -> dict[str, JointLimits]:
+    """Position and effort limits of the named joints, read from a compiled model."""
+    limits = {}
+    for name in joints:
+        joint = model.joint(name)
+        lower, upper = (float(v) for v in joint.range)
+        effort = float(max(abs(model.jnt_actfrcrange[joint.id][0]), abs(model.jnt_actfrcrange[joint.id][1])))
+        limits[name] = JointLimits(lower=lower, upper=upper, effort=effort)
+    return limits
+
+
+def add_position_actuator(
+    spec: mujoco.MjSpec, joint: str, kp: float, kv: float, force_limit: float | None
+) -> None:
+    """Add a position servo on ``joint`` with an unlimited control range.
+
+    The control range is left unlimited on purpose: a controller may add a feed-forward torque
+    through the servo as ``ctrl = q_des + tau_ff / kp``; torque stays limited by the force range
+    (or the joint's actuator force range from the URDF effort limit).
+    """
+    actuator = spec.add_actuator(name=joint, target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    actuator.set_to_position(kp=kp, kv=kv)
+    actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+    if force_limit is not None:
+        actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        actuator.forcerange = [-force_limit, force_limit]

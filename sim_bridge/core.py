@@ -1,0 +1,167 @@
+"""The simulation core: owns MjModel/MjData, steps physics, runs in-loop controllers.
+
+Nothing here knows about ROS. The sim node is the only caller that steps it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+
+from robot_models import RobotSpec
+from sim_bridge.controller import Controller, Slot
+from sim_bridge.errors import SimulationFaultError, UnknownNameError
+from sim_bridge.servo import JointServo
+from sim_bridge.state import BaseState, Pose, SimState
+
+
+class Simulation:
+    """A robot scene stepping at a fixed physics step, with controllers at the control step.
+
+    The control step is ``robot.control_decimation`` physics steps. At each control step the
+    active controllers run in slot order on the current state (``mj_step1``), then the physics
+    steps of the period run. When no controller is active (standing still under the servos'
+    own PD), many physics steps are run in one ``mj_step`` call so Python stays off the hot path.
+
+    Args:
+        robot: the scene to simulate.
+    """
+
+    def __init__(self, robot: RobotSpec) -> None:
+        self.robot = robot
+        self.model: mujoco.MjModel = robot.model
+        self.data = mujoco.MjData(self.model)
+        self.decimation = int(robot.control_decimation)
+        if self.decimation < 1:
+            raise ValueError(f"control decimation must be a whole number >= 1, got {robot.control_decimation}")
+        self.servo = JointServo(self.model, robot.actuated_joints)
+        self._controllers: dict[Slot, Controller] = {Slot.JOINT_SERVO: self.servo}
+        self._qpos_adr = np.array([self.model.joint(j).qposadr[0] for j in robot.actuated_joints])
+        self._dof_adr = np.array([self.model.joint(j).dofadr[0] for j in robot.actuated_joints])
+        self._actuator_ids = np.array([self.model.actuator(j).id for j in robot.actuated_joints])
+        self._base_body = self.model.body(robot.base_body).id
+        self._base_qpos_adr = -1
+        self._base_dof_adr = -1
+        if robot.floating_base:
+            joint_id = int(self.model.body_jntadr[self._base_body])
+            self._base_qpos_adr = int(self.model.jnt_qposadr[joint_id])
+            self._base_dof_adr = int(self.model.jnt_dofadr[joint_id])
+        self._warnings_seen = 0
+        self.reset(robot.default_keyframe, keep_time=False)
+
+    # ----- controllers -------------------------------------------------------------------
+    def set_controller(self, slot: Slot, controller: Controller | None) -> None:
+        """Install (or remove with ``None``) the controller of a slot. The servo slot is fixed."""
+        if slot == Slot.JOINT_SERVO:
+            raise ValueError("the joint servo slot cannot be replaced")
+        if controller is None:
+            self._controllers.pop(slot, None)
+        else:
+            controller.reset(self.model, self.data)
+            self._controllers[slot] = controller
+        self._controllers = dict(sorted(self._controllers.items()))
+
+    def controller(self, slot: Slot) -> Controller | None:
+        return self._controllers.get(slot)
+
+    # ----- time --------------------------------------------------------------------------
+    @property
+    def time(self) -> float:
+        """Simulation time [s]."""
+        return float(self.data.time)
+
+    @property
+    def physics_timestep(self) -> float:
+        return float(self.model.opt.timestep)
+
+    @property
+    def control_timestep(self) -> float:
+        return self.physics_timestep * self.decimation
+
+    def step(self, control_steps: int = 1) -> None:
+        """Advance by whole control steps.
+
+        Raises:
+            SimulationFaultError: the physics diverged; call :meth:`reset`.
+        """
+        remaining = int(control_steps)
+        while remaining > 0:
+            active = [c for c in self._controllers.values() if c.active]
+            if not active:
+                mujoco.mj_step(self.model, self.data, nstep=self.decimation * remaining)
+                break
+            mujoco.mj_step1(self.model, self.data)
+            for controller in active:
+                controller.update(self.model, self.data, self.control_timestep)
+            mujoco.mj_step2(self.model, self.data)
+            if self.decimation > 1:
+                mujoco.mj_step(self.model, self.data, nstep=self.decimation - 1)
+            remaining -= 1
+        self._check_fault()
+
+    def _check_fault(self) -> None:
+        warnings = int(self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number)
+        if warnings != self._warnings_seen or not math.isfinite(self.data.qpos.sum()):
+            self._warnings_seen = warnings
+            raise SimulationFaultError(f"physics diverged at t={self.time:.3f} s (bad accelerations); reset the simulation")
+
+    # ----- reset -------------------------------------------------------------------------
+    def reset(self, keyframe: str | None = None, keep_time: bool = True) -> None:
+        """Restore a keyframe exactly. Sim time keeps running forward unless ``keep_time`` is false.
+
+        Raises:
+            UnknownNameError: the keyframe does not exist (nothing is changed).
+        """
+        name = keyframe or self.robot.default_keyframe
+        key_id = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_KEY, name)
+        if key_id < 0:
+            raise UnknownNameError(f"unknown keyframe {name!r}; keyframes: {', '.join(self.robot.keyframes)}")
+        now = self.data.time
+        mujoco.mj_resetDataKeyframe(self.model, self.data, key_id)
+        if keep_time:
+            self.data.time = now
+        mujoco.mj_forward(self.model, self.data)
+        self._warnings_seen = int(self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number)
+        for controller in self._controllers.values():
+            controller.reset(self.model, self.data)
+
+    # ----- state -------------------------------------------------------------------------
+    def base_state(self) -> BaseState:
+        """Ground-truth base pose and body-frame twist."""
+        data = self.data
+        if self._base_qpos_adr >= 0:
+            q = data.qpos[self._base_qpos_adr : self._base_qpos_adr + 7]
+            v = data.qvel[self._base_dof_adr : self._base_dof_adr + 6]
+            # Free joint: linear velocity in world, angular velocity in body frame.
+            rot = np.empty(9)
+            mujoco.mju_quat2Mat(rot, q[3:7])
+            linear_body = rot.reshape(3, 3).T @ v[:3]
+            return BaseState(Pose(q[:3].copy(), q[3:7].copy()), linear_body, v[3:6].copy())
+        quat = np.empty(4)
+        mujoco.mju_mat2Quat(quat, data.xmat[self._base_body])
+        return BaseState(Pose(data.xpos[self._base_body].copy(), quat), np.zeros(3), np.zeros(3))
+
+    def snapshot(self) -> SimState:
+        """The state at this instant as typed values."""
+        data = self.data
+        return SimState(
+            time=float(data.time),
+            joint_names=self.robot.actuated_joints,
+            joint_positions=data.qpos[self._qpos_adr].copy(),
+            joint_velocities=data.qvel[self._dof_adr].copy(),
+            joint_efforts=data.actuator_force[self._actuator_ids].copy(),
+            base=self.base_state(),
+        )
+
+    def body_pose(self, name: str) -> Pose:
+        """World pose of a body.
+
+        Raises:
+            UnknownNameError: no such body.
+        """
+        body_id = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, name)
+        if body_id < 0:
+            raise UnknownNameError(f"unknown body {name!r}")
+        return Pose(self.data.xpos[body_id].copy(), self.data.xquat[body_id].copy())
