@@ -1,0 +1,41 @@
+# Two commands for a new user:  `make demo`  and  `make test`.  Both set up first.
+# Set-up is idempotent: each stage re-runs only when its inputs changed.
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMPS := $(VENV)/.stamps
+INTERFACE_FILES := $(shell find interfaces -type f)
+export MUJOCO_GL ?= egl
+
+.PHONY: setup demo test test-fast bench clean
+
+setup: $(STAMPS)/project
+
+$(STAMPS)/deps: requirements.txt
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements.txt
+	@mkdir -p $(STAMPS) && touch $@
+
+$(STAMPS)/interfaces: $(STAMPS)/deps $(INTERFACE_FILES) tools/build_interfaces.py
+	$(PY) tools/build_interfaces.py
+	@touch $@
+
+$(STAMPS)/project: $(STAMPS)/interfaces pyproject.toml package.xml tools/register_ament.py
+	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation -e .
+	$(PY) tools/register_ament.py
+	@touch $@
+
+demo: setup
+	$(VENV)/bin/sim-demo
+
+test: setup
+	$(PY) -m pytest
+
+test-fast: setup
+	$(PY) -m pytest -m "not slow"
+
+bench: setup
+	$(PY) benchmarks/sim_bench.py
+
+clean:
+	rm -rf $(VENV) build

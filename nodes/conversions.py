@@ -1,0 +1,70 @@
+"""Conversions between the core's typed values and ROS messages (no logic beyond that)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from builtin_interfaces.msg import Duration, Time
+from geometry_msgs.msg import Pose as PoseMsg
+
+from sim_bridge.state import Pose
+
+NANOSECONDS_PER_SECOND = 1_000_000_000
+
+
+def time_msg(seconds: float) -> Time:
+    """A ``builtin_interfaces/Time`` for a sim time [s] (rounded to the nanosecond)."""
+    total = int(round(seconds * NANOSECONDS_PER_SECOND))
+    return Time(sec=total // NANOSECONDS_PER_SECOND, nanosec=total % NANOSECONDS_PER_SECOND)
+
+
+def set_time(stamp: Time, seconds: float) -> None:
+    """Write a sim time [s] into an existing stamp in place (cheaper than a new message)."""
+    total = int(round(seconds * NANOSECONDS_PER_SECOND))
+    stamp.sec = total // NANOSECONDS_PER_SECOND
+    stamp.nanosec = total % NANOSECONDS_PER_SECOND
+
+
+def duration_msg(seconds: float) -> Duration:
+    total = int(round(max(0.0, seconds) * NANOSECONDS_PER_SECOND))
+    return Duration(sec=total // NANOSECONDS_PER_SECOND, nanosec=total % NANOSECONDS_PER_SECOND)
+
+
+def seconds_of(stamp: Time | Duration) -> float:
+    return stamp.sec + stamp.nanosec / NANOSECONDS_PER_SECOND
+
+
+def pose_msg(pose: Pose) -> PoseMsg:
+    """ROS pose from a core pose (quaternion order changes from w,x,y,z to x,y,z,w)."""
+    msg = PoseMsg()
+    set_pose(msg, pose.position, pose.orientation_wxyz)
+    return msg
+
+
+def set_pose(msg: PoseMsg, position: np.ndarray, quat_wxyz: np.ndarray) -> None:
+    p = position.tolist()
+    q = quat_wxyz.tolist()
+    msg.position.x, msg.position.y, msg.position.z = p[0], p[1], p[2]
+    msg.orientation.w, msg.orientation.x, msg.orientation.y, msg.orientation.z = q[0], q[1], q[2], q[3]
+
+
+def pose_from_msg(msg: PoseMsg) -> Pose:
+    """Core pose from a ROS pose. The quaternion is returned as given (not normalised)."""
+    o = msg.orientation
+    return Pose(
+        np.array([msg.position.x, msg.position.y, msg.position.z]),
+        np.array([o.w, o.x, o.y, o.z]),
+    )
+
+
+def pose_is_finite(msg: PoseMsg) -> bool:
+    values = (msg.position.x, msg.position.y, msg.position.z,
+              msg.orientation.x, msg.orientation.y, msg.orientation.z, msg.orientation.w)
+    return all(math.isfinite(v) for v in values)
+
+
+def yaw_of(quat_wxyz: np.ndarray) -> float:
+    """Heading [rad] of a quaternion (rotation about world z)."""
+    w, x, y, z = (float(v) for v in quat_wxyz)
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))

@@ -1,0 +1,444 @@
+"""The ``/sim`` node: owns the MuJoCo simulation, steps it, and publishes what it measures.
+
+One thread steps the physics (lock-stepped, paced to ``real_time_factor``) and publishes
+``/clock``, ``/joint_states``, ``/odom``, ``/tf`` and the rest when they fall due in sim time.
+Services and subscriptions run on the executor and change the simulation under one lock, so
+each change is atomic with respect to stepping.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import threading
+from dataclasses import dataclass
+
+import rclpy
+from geometry_msgs.msg import Pose as PoseMsg
+from geometry_msgs.msg import TransformStamped, Twist
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy._rclpy_pybind11 import RCLError
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
+from std_srvs.srv import Trigger
+from tf2_msgs.msg import TFMessage
+
+import robot_models
+from nodes.conversions import set_pose, set_time
+from nodes.parameters import ParameterSpec, declare
+from nodes.plugins import InLoopPlugins
+from nodes.tf_builder import TransformSet, link_pairs
+from sim_bridge import Pacer, Simulation, SimulationFaultError, UnknownNameError
+from sim_interfaces.msg import ObjectStates
+from sim_interfaces.srv import Reset, Step
+
+NODE_NAME = "sim"
+MAX_CHUNK_S = 0.05  # longest stretch of sim time stepped without releasing the lock [s]
+MAX_STEP_REQUEST = 1_000_000
+
+PARAMETERS = (
+    ParameterSpec("robot", "g1", f"robot scene to simulate, one of: {', '.join(robot_models.ROBOT_NAMES)}", read_only=True),
+    ParameterSpec("autostart", True, "configure and activate the lifecycle node on start", read_only=True),
+    ParameterSpec("start_paused", False, "start with the physics paused (use ~/resume or ~/step)", read_only=True),
+    ParameterSpec("real_time_factor", 1.0, "sim seconds per wall second; 0 = as fast as possible", 0.0, 1000.0),
+    ParameterSpec("joint_state_rate", 200.0, "/joint_states publish rate [Hz of sim time]", 1.0, 500.0),
+    ParameterSpec("clock_rate", 250.0, "/clock publish rate [Hz of sim time]; keep >= the fastest timer of any node", 10.0, 500.0),
+    ParameterSpec("odom_rate", 50.0, "/odom and odom->base /tf publish rate [Hz of sim time]", 1.0, 500.0),
+    ParameterSpec("link_tf_rate", 10.0, "/tf rate of the link transforms [Hz of sim time]; 0 = off", 0.0, 500.0),
+    ParameterSpec("state_rate", 50.0, "rate of /objects and controller state topics [Hz of sim time]", 1.0, 500.0),
+    ParameterSpec("cmd_vel_timeout", 0.5, "a /cmd_vel older than this [s of sim time] counts as zero", 0.05, 10.0),
+)
+RATE_PARAMETERS = ("joint_state_rate", "clock_rate", "odom_rate", "link_tf_rate", "state_rate")
+
+
+@dataclass
+class _Schedule:
+    """Next sim time [s] at which each stream is due."""
+
+    clock: float = 0.0
+    joint_states: float = 0.0
+    odom: float = 0.0
+    link_tf: float = 0.0
+    state: float = 0.0
+
+
+class SimNode(LifecycleNode):
+    """Lifecycle node ``/sim``: configure builds the scene, activate starts the physics thread."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        declare(self, PARAMETERS)
+        self.sim: Simulation | None = None
+        self.plugins: InLoopPlugins | None = None
+        self._lock = threading.RLock()
+        self._stop = threading.Event()
+        self._wake = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._paused = bool(self.get_parameter("start_paused").value)
+        self._pacer = Pacer(self._param("real_time_factor"))
+        self._periods: dict[str, float] = {}
+        self._schedule = _Schedule()
+        self._fault_count = 0
+        self._last_rtf = 0.0
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+        self.context.on_shutdown(self._stop_thread)
+
+    def _param(self, name: str):
+        return self.get_parameter(name).value
+
+    # ----- parameters --------------------------------------------------------------------
+    def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
+        for parameter in parameters:
+            if parameter.name in RATE_PARAMETERS and self.sim is not None and parameter.value > 0:
+                if 1.0 / parameter.value < self.sim.physics_timestep - 1e-12:
+                    return SetParametersResult(
+                        successful=False,
+                        reason=f"{parameter.name} {parameter.value} Hz is faster than the physics rate "
+                        f"({1.0 / self.sim.physics_timestep:.0f} Hz); allowed: up to that rate",
+                    )
+        return SetParametersResult(successful=True)
+
+    def _apply_parameters(self, parameters: list[Parameter]) -> None:
+        with self._lock:
+            for parameter in parameters:
+                if parameter.name == "real_time_factor":
+                    self._pacer.set_factor(float(parameter.value))
+                elif parameter.name in RATE_PARAMETERS:
+                    self._update_periods()
+            if self.plugins is not None:
+                self.plugins.on_parameters(parameters)
+
+    def _update_periods(self) -> None:
+        def period(name: str) -> float:
+            rate = float(self._param(name))
+            return 1.0 / rate if rate > 0 else math.inf
+
+        self._periods = {
+            "clock": period("clock_rate"),
+            "joint_states": period("joint_state_rate"),
+            "odom": period("odom_rate"),
+            "link_tf": period("link_tf_rate"),
+            "state": period("state_rate"),
+        }
+
+    # ----- lifecycle ---------------------------------------------------------------------
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        name = str(self._param("robot"))
+        try:
+            robot = robot_models.load(name)
+        except robot_models.UnknownRobotError as error:
+            self.get_logger().error(f"cannot configure: {error}")
+            return TransitionCallbackReturn.FAILURE
+        self.sim = Simulation(robot)
+        self._update_periods()
+        self._create_interfaces()
+        self.plugins = InLoopPlugins(self, self.sim, self._lock)
+        self.get_logger().info(
+            f"robot {robot.name}: {len(robot.actuated_joints)} actuated joints, physics step "
+            f"{robot.physics_timestep * 1e3:.1f} ms, control step {robot.control_timestep * 1e3:.1f} ms"
+        )
+        return TransitionCallbackReturn.SUCCESS
+
+    def _create_interfaces(self) -> None:
+        assert self.sim is not None
+        sim = self.sim
+        reliable = QoSProfile(depth=10)
+        self._clock_pub = self.create_publisher(Clock, "/clock", reliable)
+        self._joint_pub = self.create_publisher(JointState, "/joint_states", reliable)
+        self._odom_pub = self.create_publisher(Odometry, "/odom", reliable)
+        self._tf_pub = self.create_publisher(TFMessage, "/tf", QoSProfile(depth=100))
+        static_qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self._tf_static_pub = self.create_publisher(TFMessage, "/tf_static", static_qos)
+        self._rtf_pub = self.create_publisher(Float64, "~/real_time_factor", reliable)
+        self._objects_pub = self.create_publisher(ObjectStates, "/objects", reliable)
+
+        self._clock_msg = Clock()
+        self._joint_msg = JointState()
+        self._joint_msg.name = list(sim.robot.actuated_joints)
+        self._odom_msg = Odometry()
+        robot = sim.robot
+        self._odom_frame = "odom" if robot.floating_base else "world"
+        self._odom_msg.header.frame_id = self._odom_frame
+        self._odom_msg.child_frame_id = robot.base_body
+        base_pair = [("world", robot.base_body)]
+        self._base_tf = TransformSet(sim, base_pair, {"world": self._odom_frame})
+        self._object_tf = TransformSet(sim, [("world", name) for name in robot.objects])
+        self._link_tf = TransformSet(sim, link_pairs(sim))
+        self._objects_msg = ObjectStates(names=list(robot.objects), poses=[PoseMsg() for _ in robot.objects])
+        if robot.floating_base:
+            static = TFMessage()
+            identity = TransformStamped()
+            identity.header.frame_id = "world"
+            identity.child_frame_id = "odom"
+            identity.transform.rotation.w = 1.0
+            static.transforms = [identity]
+            self._tf_static_pub.publish(static)
+
+        services = MutuallyExclusiveCallbackGroup()
+        self.create_service(Reset, "~/reset", self._on_reset, callback_group=services)
+        self.create_service(Step, "~/step", self._on_step, callback_group=services)
+        self.create_service(Trigger, "~/pause", self._on_pause, callback_group=services)
+        self.create_service(Trigger, "~/resume", self._on_resume, callback_group=services)
+        self.create_subscription(Twist, "/cmd_vel", self._on_cmd_vel, reliable, callback_group=ReentrantCallbackGroup())
+        self.create_timer(1.0, self._publish_rtf)
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self._stop.clear()
+        self._pacer.reanchor()
+        self._thread = threading.Thread(target=self._run, name="physics", daemon=True)
+        self._thread.start()
+        self.get_logger().info("active: physics running" + (" (paused)" if self._paused else ""))
+        return super().on_activate(state)
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self._stop_thread()
+        return super().on_deactivate(state)
+
+    def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self._stop_thread()
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self._stop_thread()
+        return TransitionCallbackReturn.SUCCESS
+
+    def _stop_thread(self) -> None:
+        self._stop.set()
+        self._wake.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+            self._thread = None
+
+    # ----- the physics loop --------------------------------------------------------------
+    def _run(self) -> None:
+        try:
+            self._loop()
+        except RCLError:
+            if self.context.ok():
+                raise
+            # The context was shut down (Ctrl-C / SIGTERM) while publishing: end quietly.
+
+    def _loop(self) -> None:
+        assert self.sim is not None
+        while not self._stop.is_set() and self.context.ok():
+            if self._paused:
+                self._wake.wait(0.1)
+                self._wake.clear()
+                self._pacer.reanchor()
+                continue
+            with self._lock:
+                self._advance_to_next_event()
+            self._pacer.record(self.sim.time)
+            wait = self._pacer.wait_time(self.sim.time)
+            if wait > 0.0:
+                self._stop.wait(wait)
+
+    def _advance_to_next_event(self) -> None:
+        """Step whole control steps up to the next publication due, then publish what is due."""
+        sim = self.sim
+        assert sim is not None and self.plugins is not None
+        schedule = self._schedule
+        now = sim.time
+        due = min(schedule.clock, schedule.joint_states, schedule.odom, schedule.link_tf, schedule.state)
+        dt = sim.control_timestep
+        steps = max(1, min(int(MAX_CHUNK_S / dt), math.ceil((due - now) / dt - 1e-6)))
+        if self.plugins.needs_every_step:
+            steps = 1
+        self.plugins.before_step(now)
+        try:
+            sim.step(steps)
+        except SimulationFaultError as error:
+            self._fault_count += 1
+            self.get_logger().error(f"{error}; resetting to keyframe {sim.robot.default_keyframe!r}")
+            sim.reset()
+            self.plugins.on_fault(str(error))
+        self._publish_due(sim.time)
+
+    def _publish_due(self, now: float, force: bool = False) -> None:
+        sim = self.sim
+        assert sim is not None and self.plugins is not None
+        schedule = self._schedule
+        periods = self._periods
+        eps = 1e-9
+        if force or now + eps >= schedule.clock:
+            set_time(self._clock_msg.clock, now)
+            self._clock_pub.publish(self._clock_msg)
+            schedule.clock = _next_due(schedule.clock, periods["clock"], now)
+        if force or now + eps >= schedule.joint_states:
+            self._publish_joint_states(now)
+            schedule.joint_states = _next_due(schedule.joint_states, periods["joint_states"], now)
+        if force or now + eps >= schedule.odom:
+            self._publish_odom(now)
+            schedule.odom = _next_due(schedule.odom, periods["odom"], now)
+        if len(self._link_tf) and (force or now + eps >= schedule.link_tf):
+            self._tf_pub.publish(self._link_tf.update(sim.data, now))
+            schedule.link_tf = _next_due(schedule.link_tf, periods["link_tf"], now)
+        if force or now + eps >= schedule.state:
+            if len(self._object_tf):
+                self._publish_objects(now)
+            self.plugins.publish_state(now)
+            schedule.state = _next_due(schedule.state, periods["state"], now)
+
+    def _publish_joint_states(self, now: float) -> None:
+        assert self.sim is not None
+        state = self.sim.snapshot()
+        msg = self._joint_msg
+        set_time(msg.header.stamp, now)
+        msg.position = state.joint_positions.tolist()
+        msg.velocity = state.joint_velocities.tolist()
+        msg.effort = state.joint_efforts.tolist()
+        self._joint_pub.publish(msg)
+
+    def _publish_odom(self, now: float) -> None:
+        assert self.sim is not None
+        base = self.sim.base_state()
+        msg = self._odom_msg
+        set_time(msg.header.stamp, now)
+        set_pose(msg.pose.pose, base.pose.position, base.pose.orientation_wxyz)
+        v = base.linear_velocity_body.tolist()
+        w = base.angular_velocity_body.tolist()
+        twist = msg.twist.twist
+        twist.linear.x, twist.linear.y, twist.linear.z = v[0], v[1], v[2]
+        twist.angular.x, twist.angular.y, twist.angular.z = w[0], w[1], w[2]
+        self._odom_pub.publish(msg)
+        self._tf_pub.publish(self._base_tf.update(self.sim.data, now))
+
+    def _publish_objects(self, now: float) -> None:
+        assert self.sim is not None
+        tf = self._object_tf.update(self.sim.data, now)
+        self._tf_pub.publish(tf)
+        msg = self._objects_msg
+        set_time(msg.header.stamp, now)
+        for pose, transform in zip(msg.poses, tf.transforms):
+            t, r = transform.transform.translation, transform.transform.rotation
+            pose.position.x, pose.position.y, pose.position.z = t.x, t.y, t.z
+            pose.orientation.w, pose.orientation.x, pose.orientation.y, pose.orientation.z = r.w, r.x, r.y, r.z
+        self._objects_pub.publish(msg)
+
+    def _publish_rtf(self) -> None:
+        if self._thread is None:
+            return
+        self._last_rtf = 0.0 if self._paused else self._pacer.achieved_factor()
+        self._rtf_pub.publish(Float64(data=self._last_rtf))
+
+    # ----- inputs and services -----------------------------------------------------------
+    def _on_cmd_vel(self, msg: Twist) -> None:
+        if self.plugins is not None:
+            self.plugins.on_cmd_vel(msg)
+
+    def _on_reset(self, request: Reset.Request, response: Reset.Response) -> Reset.Response:
+        assert self.sim is not None and self.plugins is not None
+        with self._lock:
+            try:
+                self.sim.reset(request.keyframe or None)
+            except UnknownNameError as error:
+                response.success = False
+                response.message = str(error)
+                response.sim_time = self.sim.time
+                return response
+            self.plugins.on_reset()
+            self._publish_due(self.sim.time, force=True)
+            response.success = True
+            response.message = f"reset to keyframe {request.keyframe or self.sim.robot.default_keyframe!r}"
+            response.sim_time = self.sim.time
+        self.get_logger().info(response.message)
+        return response
+
+    def _on_pause(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        with self._lock:
+            was = self._paused
+            self._paused = True
+        response.success = True
+        response.message = "already paused" if was else "paused"
+        return response
+
+    def _on_resume(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        with self._lock:
+            was = self._paused
+            self._paused = False
+            self._pacer.reanchor()
+        self._wake.set()
+        response.success = True
+        response.message = "running" if was else "already running"
+        return response
+
+    def _on_step(self, request: Step.Request, response: Step.Response) -> Step.Response:
+        assert self.sim is not None
+        with self._lock:
+            if not self._paused:
+                response.success = False
+                response.message = "step is only allowed while paused; call ~/pause first"
+            elif not 1 <= request.steps <= MAX_STEP_REQUEST:
+                response.success = False
+                response.message = f"steps must be in [1, {MAX_STEP_REQUEST}], got {request.steps}"
+            else:
+                target = self.sim.time + request.steps * self.sim.control_timestep - 1e-9
+                while self.sim.time < target:
+                    self._advance_to_next_event_bounded(target)
+                response.success = True
+                response.message = f"stepped {request.steps} control steps"
+            response.sim_time = self.sim.time
+        return response
+
+    def _advance_to_next_event_bounded(self, target: float) -> None:
+        sim = self.sim
+        assert sim is not None and self.plugins is not None
+        schedule = self._schedule
+        due = min(schedule.clock, schedule.joint_states, schedule.odom, schedule.link_tf, schedule.state, target)
+        dt = sim.control_timestep
+        steps = max(1, math.ceil((due - sim.time) / dt - 1e-6))
+        if self.plugins.needs_every_step:
+            steps = 1
+        self.plugins.before_step(sim.time)
+        sim.step(steps)
+        self._publish_due(sim.time)
+
+    def destroy(self) -> None:
+        self._stop_thread()
+        self.destroy_node()
+
+
+def _next_due(previous: float, period: float, now: float) -> float:
+    """Next due time on the period grid, skipping slots already in the past."""
+    if math.isinf(period):
+        return math.inf
+    nxt = previous + period
+    if nxt <= now:
+        nxt = now + period - ((now - previous) % period)
+    return nxt
+
+
+def main(args: list[str] | None = None) -> int:
+    """Console entry point: ``sim_node --ros-args -p robot:=g1``."""
+    rclpy.init(args=args)
+    node = SimNode()
+    executor = MultiThreadedExecutor(num_threads=4)
+    executor.add_node(node)
+    code = 0
+    try:
+        if node.get_parameter("autostart").value:
+            if node.trigger_configure() != TransitionCallbackReturn.SUCCESS:
+                node.get_logger().fatal(f"configuration failed; known robots: {', '.join(robot_models.ROBOT_NAMES)}")
+                return 2
+            node.trigger_activate()
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy()
+        executor.shutdown()
+        if rclpy.ok():
+            rclpy.try_shutdown()
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,422 @@
+"""Arm kinematics on a private copy of the model: arm descriptions, mink IK problems, ``solve_ik``.
+
+Nothing here writes the simulation's ``MjData``: every IK problem runs on its own
+:class:`mink.Configuration`. For a robot with more DoFs than the arm (floating base, legs, other
+arm, gripper, free objects) every DoF but the arm's is frozen by an equality constraint.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import mink
+import mujoco
+import numpy as np
+
+from robot_models import RobotSpec
+from sim_bridge.arm.scene import ArmSceneConfig, scene_config
+from sim_bridge.arm.types import ArmControllerConfig, IKResult
+from sim_bridge.errors import InvalidGoalError, UnknownNameError
+from sim_bridge.state import Pose
+
+_SOLVER = "daqp"
+
+
+# ----- small pose helpers ------------------------------------------------------------------------
+def quat_to_mat(quat_wxyz: np.ndarray) -> np.ndarray:
+    """Rotation matrix (3, 3) of a unit quaternion (w, x, y, z)."""
+    mat = np.empty(9)
+    mujoco.mju_quat2Mat(mat, np.asarray(quat_wxyz, dtype=float))
+    return mat.reshape(3, 3)
+
+
+def mat_to_quat(mat: np.ndarray) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) of a rotation matrix (3, 3) or (9,)."""
+    quat = np.empty(4)
+    mujoco.mju_mat2Quat(quat, np.asarray(mat, dtype=float).reshape(9))
+    return quat
+
+
+def rotation_error(quat_a: np.ndarray, quat_b: np.ndarray) -> float:
+    """Angle of the rotation between two orientations [rad]."""
+    diff = np.empty(3)
+    mujoco.mju_subQuat(diff, np.asarray(quat_a, dtype=float), np.asarray(quat_b, dtype=float))
+    return float(np.linalg.norm(diff))
+
+
+def interpolate_quat(quat_from: np.ndarray, quat_to: np.ndarray, fraction: float) -> np.ndarray:
+    """Geodesic interpolation (slerp) between two unit quaternions; ``fraction`` in [0, 1]."""
+    delta = np.empty(3)
+    mujoco.mju_subQuat(delta, np.asarray(quat_to, dtype=float), np.asarray(quat_from, dtype=float))
+    quat = np.array(quat_from, dtype=float)
+    mujoco.mju_quatIntegrate(quat, delta, float(fraction))
+    return quat
+
+
+def validate_pose(pose: Pose) -> Pose:
+    """A copy of ``pose`` with a normalised quaternion.
+
+    Raises:
+        InvalidGoalError: wrong shapes, non-finite values or a zero quaternion.
+    """
+    position = np.asarray(pose.position, dtype=float).reshape(-1)
+    quat = np.asarray(pose.orientation_wxyz, dtype=float).reshape(-1)
+    if position.shape != (3,) or quat.shape != (4,):
+        raise InvalidGoalError(f"a pose needs 3 position and 4 quaternion values, got {position.size} and {quat.size}")
+    if not (np.all(np.isfinite(position)) and np.all(np.isfinite(quat))):
+        raise InvalidGoalError("pose values must be finite numbers")
+    norm = float(np.linalg.norm(quat))
+    if norm < 1e-9:
+        raise InvalidGoalError("the orientation quaternion (w, x, y, z) has zero norm")
+    return Pose(position.copy(), quat / norm)
+
+
+def _se3(pose: Pose) -> mink.SE3:
+    return mink.SE3.from_rotation_and_translation(mink.SO3(np.asarray(pose.orientation_wxyz)), np.asarray(pose.position))
+
+
+# ----- arm description ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ArmInfo:
+    """Indices of one arm, resolved once from names.
+
+    Attributes:
+        name: arm name (a joint group of the robot spec).
+        joints: arm joint names, shoulder to wrist.
+        qpos_adr: qpos address of each arm joint, shape (n,).
+        dof_adr: qvel address of each arm joint, shape (n,).
+        actuator_ids: position actuator of each arm joint, shape (n,).
+        site: tool point site name.
+        site_id: tool point site id.
+        base_joint_id: id of the first arm joint (its anchor is the shoulder).
+        reach: upper bound of the distance shoulder -> tool point [m].
+        gripper_joints: finger joints ("" tuple for no gripper).
+        gripper_qpos_adr: qpos address of each finger joint.
+        gripper_actuator_ids: actuator of each finger joint.
+    """
+
+    name: str
+    joints: tuple[str, ...]
+    qpos_adr: np.ndarray
+    dof_adr: np.ndarray
+    actuator_ids: np.ndarray
+    site: str
+    site_id: int
+    base_joint_id: int
+    reach: float
+    gripper_joints: tuple[str, ...]
+    gripper_qpos_adr: np.ndarray
+    gripper_actuator_ids: np.ndarray
+
+
+def _actuator_of(model: mujoco.MjModel, joint: str) -> int:
+    joint_id = model.joint(joint).id
+    for actuator_id in range(model.nu):
+        if model.actuator_trntype[actuator_id] == mujoco.mjtTrn.mjTRN_JOINT and model.actuator_trnid[actuator_id, 0] == joint_id:
+            return actuator_id
+    raise UnknownNameError(f"joint {joint!r} has no actuator")
+
+
+def _reach(model: mujoco.MjModel, joints: Sequence[str], site: str, qpos: np.ndarray) -> float:
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    points = [data.xanchor[model.joint(j).id].copy() for j in joints] + [data.site(site).xpos.copy()]
+    return float(sum(np.linalg.norm(b - a) for a, b in zip(points[:-1], points[1:])))
+
+
+def arm_infos(robot: RobotSpec, scene: ArmSceneConfig) -> dict[str, ArmInfo]:
+    """Every arm of the robot (one per end-effector site), resolved to indices."""
+    model = robot.model
+    key_qpos = model.key(robot.default_keyframe).qpos.copy()
+    infos = {}
+    for arm, site in robot.end_effector_sites.items():
+        joints = tuple(robot.joint_groups[arm])
+        grippers = tuple(scene.grippers.get(arm, ()))
+        infos[arm] = ArmInfo(
+            name=arm,
+            joints=joints,
+            qpos_adr=np.array([model.joint(j).qposadr[0] for j in joints], dtype=int),
+            dof_adr=np.array([model.joint(j).dofadr[0] for j in joints], dtype=int),
+            actuator_ids=np.array([_actuator_of(model, j) for j in joints], dtype=int),
+            site=site,
+            site_id=int(model.site(site).id),
+            base_joint_id=int(model.joint(joints[0]).id),
+            reach=_reach(model, joints, site, key_qpos),
+            gripper_joints=grippers,
+            gripper_qpos_adr=np.array([model.joint(j).qposadr[0] for j in grippers], dtype=int),
+            gripper_actuator_ids=np.array([_actuator_of(model, j) for j in grippers], dtype=int),
+        )
+    return infos
+
+
+def check_arm_name(infos: dict[str, ArmInfo], arm: str) -> ArmInfo:
+    """The named arm.
+
+    Raises:
+        UnknownNameError: no such arm; the message lists the arms.
+    """
+    try:
+        return infos[arm]
+    except KeyError:
+        raise UnknownNameError(f"unknown arm {arm!r}; arms: {', '.join(infos)}") from None
+
+
+def _subtree_bodies(model: mujoco.MjModel, root: int) -> list[int]:
+    bodies = [root]
+    for body in range(root + 1, model.nbody):
+        parent = int(model.body_parentid[body])
+        if parent in bodies:
+            bodies.append(body)
+    return bodies
+
+
+def build_ik_model(robot: RobotSpec, scene: ArmSceneConfig, info: ArmInfo) -> tuple[mujoco.MjModel, list[tuple[list[int], list[int]]]]:
+    """A private copy of the model for one arm's IK, and that arm's collision pairs.
+
+    Only the arm's joints keep their position limits in the copy: every other DoF is frozen by an
+    equality constraint, and a frozen DoF measured a hair outside its range would make mink's
+    ConfigurationLimit contradict the freezing constraint.
+
+    Returns:
+        The IK model and mink collision pairs (arm link geoms, obstacle geoms).
+    """
+    model = copy.deepcopy(robot.model)
+    arm_joint_ids = {model.joint(j).id for j in info.joints}
+    for joint_id in range(model.njnt):
+        if joint_id not in arm_joint_ids:
+            model.jnt_limited[joint_id] = 0
+    obstacle_geoms = [model.geom(name).id for name in scene.obstacle_geoms]
+    for body_name in scene.obstacle_bodies:
+        body_id = model.body(body_name).id
+        obstacle_geoms += [g for g in range(model.ngeom) if model.geom_bodyid[g] == body_id]
+    first = info.joints[min(scene.collision_from_joint, len(info.joints) - 1)]
+    bodies = set(_subtree_bodies(model, int(model.jnt_bodyid[model.joint(first).id])))
+    arm_geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] in bodies]
+    if scene.make_visuals_collide:
+        for geom in arm_geoms + obstacle_geoms:
+            model.geom_contype[geom] = 1
+            model.geom_conaffinity[geom] = 1
+    pairs = [(arm_geoms, list(obstacle_geoms))] if arm_geoms and obstacle_geoms else []
+    return model, pairs
+
+
+class IKProblem:
+    """mink differential IK of one arm's tool site on a private :class:`mink.Configuration`.
+
+    Args:
+        model: the IK model (see :func:`build_ik_model`).
+        info: the arm.
+        collision_pairs: mink collision pairs of this arm.
+        posture_qpos: posture target, a full qpos (nq,).
+        config: tuning.
+        velocity_limited: add a VelocityLimit (tracking) or not (offline solves).
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        info: ArmInfo,
+        collision_pairs: list[tuple[list[int], list[int]]],
+        posture_qpos: np.ndarray,
+        config: ArmControllerConfig,
+        velocity_limited: bool,
+    ) -> None:
+        self.info = info
+        self.config = config
+        self.configuration = mink.Configuration(model)
+        self.frame_task = mink.FrameTask(
+            info.site, "site", position_cost=config.frame_position_cost,
+            orientation_cost=config.frame_orientation_cost, lm_damping=config.lm_damping,
+        )
+        posture_cost = np.zeros(model.nv)
+        posture_cost[info.dof_adr] = config.posture_cost
+        self.posture_task = mink.PostureTask(model, cost=posture_cost)
+        self.posture_task.set_target(posture_qpos)
+        self.limits: list[mink.Limit] = [mink.ConfigurationLimit(model)]
+        if velocity_limited:
+            self.limits.append(mink.VelocityLimit(model, {j: config.joint_velocity_limit for j in info.joints}))
+        if collision_pairs:
+            self.limits.append(mink.CollisionAvoidanceLimit(
+                model, collision_pairs,
+                minimum_distance_from_collisions=config.collision_min_distance,
+                collision_detection_distance=config.collision_detection_distance,
+            ))
+        frozen = sorted(set(range(model.nv)) - set(int(d) for d in info.dof_adr))
+        self.constraints: list[mink.Task] = [mink.DofFreezingTask(model, dof_indices=frozen)] if frozen else []
+        joint_ids = [model.joint(j).id for j in info.joints]
+        self._lower = model.jnt_range[joint_ids, 0].copy()
+        self._upper = model.jnt_range[joint_ids, 1].copy()
+
+    def set_configuration(self, qpos: np.ndarray, arm_q: np.ndarray | None = None) -> None:
+        """Load a full qpos (nq,), optionally replacing the arm's joints [rad] (clipped to limits)."""
+        q = np.array(qpos, dtype=float)
+        if arm_q is not None:
+            q[self.info.qpos_adr] = arm_q
+        q[self.info.qpos_adr] = np.clip(q[self.info.qpos_adr], self._lower, self._upper)
+        self.configuration.update(q)
+
+    @property
+    def arm_q(self) -> np.ndarray:
+        """The arm's joint positions in the IK configuration [rad], shape (n,)."""
+        return self.configuration.q[self.info.qpos_adr].copy()
+
+    def tool_pose(self) -> Pose:
+        """Tool site pose of the IK configuration, world frame."""
+        data = self.configuration.data
+        return Pose(data.site_xpos[self.info.site_id].copy(), mat_to_quat(data.site_xmat[self.info.site_id]))
+
+    def errors(self, target: Pose, position_only: bool) -> tuple[float, float]:
+        """Position [m] and orientation [rad] error of the IK configuration's tool."""
+        tool = self.tool_pose()
+        position_error = float(np.linalg.norm(tool.position - target.position))
+        orientation_error = 0.0 if position_only else rotation_error(target.orientation_wxyz, tool.orientation_wxyz)
+        return position_error, orientation_error
+
+    def iterate(self, target: Pose, position_only: bool, dt: float, iterations: int, tolerance: tuple[float, float]) -> int:
+        """Run up to ``iterations`` IK steps of length ``dt`` [s] toward ``target``; returns steps used."""
+        self.frame_task.set_target(_se3(target))
+        self.frame_task.set_orientation_cost(0.0 if position_only else self.config.frame_orientation_cost)
+        tasks = [self.frame_task, self.posture_task]
+        for step in range(iterations):
+            position_error, orientation_error = self.errors(target, position_only)
+            if position_error <= tolerance[0] and orientation_error <= tolerance[1]:
+                return step
+            try:
+                velocity = mink.solve_ik(
+                    self.configuration, tasks, dt, _SOLVER, damping=1e-9, limits=self.limits, constraints=self.constraints,
+                )
+            except mink.NoSolutionFound:
+                return step  # keep the last configuration; the caller sees the remaining error
+
+            if float(np.max(np.abs(velocity))) * dt < 1e-9:
+                return step + 1
+            self.configuration.integrate_inplace(velocity, dt)
+        return iterations
+
+
+def solve_offline(problem: IKProblem, target: Pose, position_only: bool, seeds: Sequence[np.ndarray], qpos: np.ndarray) -> IKResult:
+    """Converge an IK problem from each seed in turn until one reaches the target.
+
+    Args:
+        problem: an IK problem without velocity limit.
+        target: tool goal in the world frame.
+        position_only: ignore orientation.
+        seeds: arm joint positions to start from [rad].
+        qpos: full qpos (nq,) for the other DoFs (floating base, other arm).
+    """
+    config = problem.config
+    fine = (config.position_tolerance * 0.05, config.orientation_tolerance * 0.05)
+    best: IKResult | None = None
+    for seed in seeds:
+        problem.set_configuration(qpos, seed)
+        used = problem.iterate(target, position_only, 0.1, config.offline_ik_iterations, fine)
+        position_error, orientation_error = problem.errors(target, position_only)
+        success = position_error <= config.position_tolerance and orientation_error <= config.orientation_tolerance
+        reason = "" if success else (
+            f"IK converged {position_error * 1000:.1f} mm / {orientation_error:.3f} rad from the target "
+            f"(tolerance {config.position_tolerance * 1000:.1f} mm / {config.orientation_tolerance:.3f} rad): "
+            "joint limits or collision avoidance block it"
+        )
+        result = IKResult(problem.info.joints, problem.arm_q, position_error, orientation_error, success, reason, used)
+        if success:
+            return result
+        if best is None or position_error + 0.1 * orientation_error < best.position_error + 0.1 * best.orientation_error:
+            best = result
+    assert best is not None  # seeds is never empty (checked by callers)
+    return best
+
+
+def workspace_reason(info: ArmInfo, shoulder_world: np.ndarray, target: Pose, table_top_z: float | None) -> str:
+    """Why a target is outside the arm's workspace, or "" if it may be inside."""
+    distance = float(np.linalg.norm(np.asarray(target.position) - shoulder_world))
+    if distance > info.reach:
+        return (f"target is outside the workspace: {distance:.3f} m from the first joint of {info.name!r}, "
+                f"farther than its reach {info.reach:.3f} m")
+    if table_top_z is not None and float(target.position[2]) < table_top_z:
+        return f"target is outside the workspace: z = {float(target.position[2]):.3f} m is below the table top z = {table_top_z:.3f} m"
+    return ""
+
+
+class ArmKinematics:
+    """The IK model of a robot and an IK problem pair (tracking, offline) per arm.
+
+    Args:
+        robot: the robot scene.
+        config: tuning.
+    """
+
+    def __init__(self, robot: RobotSpec, config: ArmControllerConfig | None = None) -> None:
+        self.robot = robot
+        self.config = config or ArmControllerConfig()
+        self.scene = scene_config(robot)
+        self.arms = arm_infos(robot, self.scene)
+        self.posture_qpos = robot.model.key(robot.default_keyframe).qpos.copy()
+        self.tracking: dict[str, IKProblem] = {}
+        self.offline: dict[str, IKProblem] = {}
+        for arm, info in self.arms.items():
+            model, pairs = build_ik_model(robot, self.scene, info)
+            self.tracking[arm] = IKProblem(model, info, pairs, self.posture_qpos, self.config, True)
+            self.offline[arm] = IKProblem(model, info, pairs, self.posture_qpos, self.config, False)
+        self.model = robot.model
+        self._data = mujoco.MjData(self.model)
+
+    def arm(self, name: str) -> ArmInfo:
+        """The named arm; raises UnknownNameError listing the arms."""
+        return check_arm_name(self.arms, name)
+
+    def shoulder_position(self, arm: str, qpos: np.ndarray) -> np.ndarray:
+        """World position of the arm's first joint anchor for a full qpos [m]."""
+        self._data.qpos[:] = qpos
+        mujoco.mj_kinematics(self.model, self._data)
+        return self._data.xanchor[self.arms[arm].base_joint_id].copy()
+
+    def solve(self, arm: str, qpos: np.ndarray, target: Pose, position_only: bool) -> IKResult:
+        """Offline IK from ``qpos`` (nq,) and from the default keyframe's arm posture.
+
+        Raises:
+            UnknownNameError: unknown arm.
+            InvalidGoalError: malformed pose.
+        """
+        info = self.arm(arm)
+        target = validate_pose(target)
+        qpos = np.asarray(qpos, dtype=float)
+        reason = workspace_reason(info, self.shoulder_position(arm, qpos), target, self.scene.objects_table_top_z)
+        if reason:
+            return IKResult(info.joints, qpos[info.qpos_adr].copy(), math.nan, math.nan, False, reason, 0)
+        seeds = [qpos[info.qpos_adr], self.posture_qpos[info.qpos_adr]]
+        return solve_offline(self.offline[arm], target, position_only, seeds, qpos)
+
+
+def solve_ik(
+    robot: RobotSpec | ArmKinematics,
+    data_or_q: mujoco.MjData | np.ndarray,
+    arm: str,
+    target_pose: Pose,
+    position_only: bool,
+) -> IKResult:
+    """Pure IK query: arm joint positions that put the arm's tool point at ``target_pose``.
+
+    Args:
+        robot: the robot scene, or an :class:`ArmKinematics` built from it (reused, faster).
+        data_or_q: the current state (its qpos is read, never written), or a full qpos (nq,).
+        arm: arm name, e.g. ``"arm"`` (panda) or ``"right_arm"`` (G1).
+        target_pose: tool point goal in the world frame.
+        position_only: ignore the orientation.
+
+    Returns:
+        The solution with its remaining errors; ``success`` is false with a ``reason`` when the
+        target is outside the workspace or the IK converges farther than tolerance.
+
+    Raises:
+        UnknownNameError: unknown arm (the message lists the arms).
+        InvalidGoalError: malformed pose or qpos.
+    """
+    kinematics = robot if isinstance(robot, ArmKinematics) else ArmKinematics(robot)
+    qpos = np.array(data_or_q.qpos if isinstance(data_or_q, mujoco.MjData) else data_or_q, dtype=float).reshape(-1)
+    if qpos.shape != (kinematics.model.nq,) or not np.all(np.isfinite(qpos)):
+        raise InvalidGoalError(f"qpos must hold {kinematics.model.nq} finite values, got shape {qpos.shape}")
+    return kinematics.solve(arm, qpos, target_pose, position_only)

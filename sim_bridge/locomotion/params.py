@@ -1,0 +1,66 @@
+"""Gait parameters of the walking controller: one frozen, validated dataclass with documented ranges."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import Final
+
+from sim_bridge.errors import InvalidGoalError
+
+# name -> (min, max, description). A ROS node turns each entry into a parameter descriptor.
+PARAMETER_RANGES: Final[dict[str, tuple[float, float, str]]] = {
+    "step_duration": (0.25, 0.80, "single-support (swing) time of one step [s]"),
+    "double_support_duration": (0.05, 0.40, "double-support time between two steps [s]"),
+    "step_height": (0.02, 0.12, "swing foot apex height above the floor [m]"),
+    "max_forward_speed": (0.0, 0.60, "largest forward speed a command is clamped to [m/s]"),
+    "max_backward_speed": (0.0, 0.40, "largest backward speed a command is clamped to [m/s]"),
+    "max_lateral_speed": (0.0, 0.20, "largest sideways speed a command is clamped to [m/s]"),
+    "max_yaw_rate": (0.0, 1.00, "largest turning rate a command is clamped to [rad/s]"),
+    "max_acceleration": (0.05, 2.00, "rate at which the walking speed follows a command [m/s^2]"),
+    "max_yaw_acceleration": (0.1, 4.00, "rate at which the turning rate follows a command [rad/s^2]"),
+}
+
+
+@dataclass(frozen=True)
+class GaitParameters:
+    """Timing, swing height and command limits of the gait. Ranges are in :data:`PARAMETER_RANGES`.
+
+    Attributes:
+        step_duration: single-support (swing) time of one step [s], in [0.25, 0.80].
+        double_support_duration: double-support time between steps [s], in [0.05, 0.40].
+        step_height: swing foot apex above the floor [m], in [0.02, 0.12].
+        max_forward_speed: forward speed limit [m/s], in [0, 0.60].
+        max_backward_speed: backward speed limit (a magnitude) [m/s], in [0, 0.40].
+        max_lateral_speed: sideways speed limit (a magnitude) [m/s], in [0, 0.20].
+        max_yaw_rate: turning rate limit (a magnitude) [rad/s], in [0, 1.0].
+        max_acceleration: how fast the walking speed follows the command [m/s^2], in [0.05, 2.0].
+        max_yaw_acceleration: how fast the turning rate follows the command [rad/s^2], in [0.1, 4.0].
+
+    Raises:
+        InvalidGoalError: a value is not finite or is outside its range (the message names the range).
+    """
+
+    step_duration: float = 0.35
+    double_support_duration: float = 0.10
+    step_height: float = 0.06
+    max_forward_speed: float = 0.60
+    max_backward_speed: float = 0.30
+    max_lateral_speed: float = 0.15
+    max_yaw_rate: float = 0.60
+    max_acceleration: float = 0.50
+    max_yaw_acceleration: float = 1.00
+
+    def __post_init__(self) -> None:
+        for item in fields(self):
+            value = getattr(self, item.name)
+            low, high, description = PARAMETER_RANGES[item.name]
+            if not isinstance(value, (int, float)) or not math.isfinite(value) or not low <= value <= high:
+                raise InvalidGoalError(
+                    f"gait parameter {item.name}={value!r} is outside the allowed range [{low}, {high}] ({description})"
+                )
+
+    @property
+    def step_period(self) -> float:
+        """Time from one lift-off to the next [s]."""
+        return self.step_duration + self.double_support_duration

@@ -1,0 +1,69 @@
+"""Launching project executables as child processes, and stopping them for sure."""
+
+from __future__ import annotations
+
+import os
+import pathlib
+import signal
+import subprocess
+import sys
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+BIN = pathlib.Path(sys.executable).parent
+
+
+class ChildProcess:
+    """An executable of this venv in its own process group, its output in a log file."""
+
+    def __init__(self, args: list[str], log_dir: pathlib.Path | None = None) -> None:
+        self.args = args
+        if log_dir is not None:
+            log_dir.mkdir(parents=True, exist_ok=True)
+            self.log_path = log_dir / f"{args[0]}.log"
+            self._log = open(self.log_path, "wb")  # noqa: SIM115 - closed in stop()
+        else:
+            handle = tempfile.NamedTemporaryFile(prefix=f"{args[0]}-", suffix=".log", delete=False)
+            self.log_path = pathlib.Path(handle.name)
+            self._log = handle
+        self.process = subprocess.Popen(
+            [str(BIN / args[0]), *args[1:]], stdout=self._log, stderr=subprocess.STDOUT,
+            start_new_session=True, env=dict(os.environ),
+        )
+
+    def output(self) -> str:
+        return self.log_path.read_text(errors="replace")
+
+    def alive(self) -> bool:
+        return self.process.poll() is None
+
+    def stop(self, timeout: float = 10.0) -> int:
+        """SIGINT the whole process group; SIGKILL what is left after ``timeout`` seconds."""
+        if self.alive():
+            try:
+                os.killpg(self.process.pid, signal.SIGINT)
+                self.process.wait(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                os.killpg(self.process.pid, signal.SIGKILL)
+                self.process.wait(timeout=timeout)
+            except ProcessLookupError:
+                pass
+        try:
+            os.killpg(self.process.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        self._log.close()
+        return int(self.process.returncode)
+
+
+@contextmanager
+def running(args: list[str], log_dir: pathlib.Path | None = None) -> Iterator[ChildProcess]:
+    """Run an executable for the duration of a ``with`` block."""
+    child = ChildProcess(args, log_dir)
+    try:
+        yield child
+    finally:
+        code = child.stop()
+        if code not in (0, -signal.SIGINT, 130):
+            sys.stderr.write(f"--- {' '.join(args)} exited with {code}; last output:\n{child.output()[-3000:]}\n")

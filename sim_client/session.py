@@ -1,0 +1,157 @@
+"""A ROS session owned by a script: its own context, node and background executor."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from typing import Any, Generic, TypeVar
+
+import rclpy
+from rcl_interfaces.msg import Parameter as ParameterMsg
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import QoSProfile
+from rclpy.task import Future
+
+MsgT = TypeVar("MsgT")
+
+
+class WaitTimeout(TimeoutError):
+    """A condition did not hold before its deadline; the message says which."""
+
+
+class TopicRecorder(Generic[MsgT]):
+    """Keeps the messages of one topic as they arrive (thread-safe), with their arrival count."""
+
+    def __init__(self, keep: int = 100_000) -> None:
+        self._lock = threading.Lock()
+        self._messages: list[MsgT] = []
+        self._keep = keep
+        self.count = 0
+
+    def _on_message(self, msg: MsgT) -> None:
+        with self._lock:
+            self._messages.append(msg)
+            if len(self._messages) > self._keep:
+                del self._messages[: len(self._messages) - self._keep]
+            self.count += 1
+
+    @property
+    def latest(self) -> MsgT | None:
+        with self._lock:
+            return self._messages[-1] if self._messages else None
+
+    def messages(self) -> list[MsgT]:
+        with self._lock:
+            return list(self._messages)
+
+    def clear(self) -> None:
+        with self._lock:
+            self._messages.clear()
+
+
+class RosSession:
+    """rclpy context + node + executor thread, closed with ``with`` or :meth:`close`.
+
+    Args:
+        name: node name of the client.
+        use_sim_time: run the client's clock on /clock (the project default).
+    """
+
+    def __init__(self, name: str = "sim_client", use_sim_time: bool = True) -> None:
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.node = Node(
+            name,
+            context=self.context,
+            parameter_overrides=[Parameter("use_sim_time", value=use_sim_time)],
+        )
+        self._executor = SingleThreadedExecutor(context=self.context)
+        self._executor.add_node(self.node)
+        self._thread = threading.Thread(target=self._spin, name=f"{name}-executor", daemon=True)
+        self._thread.start()
+        self._parameter_clients: dict[str, AsyncParameterClient] = {}
+
+    def _spin(self) -> None:
+        try:
+            self._executor.spin()
+        except Exception:  # noqa: BLE001 - executor ends when the context shuts down
+            if self.context.ok():
+                raise
+
+    def __enter__(self) -> RosSession:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self._executor.shutdown(timeout_sec=2.0)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+        self._thread.join(timeout=5.0)
+
+    # ----- waiting -----------------------------------------------------------------------
+    @staticmethod
+    def wait_for(predicate: Callable[[], Any], timeout: float, what: str, poll: float = 0.01) -> Any:
+        """Wait until ``predicate()`` is truthy and return its value.
+
+        Raises:
+            WaitTimeout: not true within ``timeout`` wall seconds; the message names ``what``.
+        """
+        deadline = time.monotonic() + timeout
+        event = threading.Event()
+        while True:
+            value = predicate()
+            if value:
+                return value
+            if time.monotonic() > deadline:
+                raise WaitTimeout(f"timed out after {timeout:.1f} s waiting for {what}")
+            event.wait(poll)
+
+    def wait_future(self, future: Future, timeout: float, what: str) -> Any:
+        self.wait_for(future.done, timeout, what)
+        return future.result()
+
+    # ----- topics and services -----------------------------------------------------------
+    def record(self, msg_type: type[MsgT], topic: str, qos: QoSProfile | int = 10, keep: int = 100_000) -> TopicRecorder[MsgT]:
+        recorder: TopicRecorder[MsgT] = TopicRecorder(keep)
+        self.node.create_subscription(msg_type, topic, recorder._on_message, qos)
+        return recorder
+
+    def call(self, srv_type: Any, name: str, request: Any, timeout: float = 10.0) -> Any:
+        """Call a service and return its response (waits for the service first)."""
+        client = self.node.create_client(srv_type, name)
+        try:
+            self.wait_for(client.service_is_ready, timeout, f"service {name}")
+            return self.wait_future(client.call_async(request), timeout, f"response of {name}")
+        finally:
+            self.node.destroy_client(client)
+
+    def parameters(self, node_name: str) -> AsyncParameterClient:
+        """Client of a node's standard parameter services (what ``ros2 param`` calls)."""
+        if node_name not in self._parameter_clients:
+            self._parameter_clients[node_name] = AsyncParameterClient(self.node, node_name)
+        return self._parameter_clients[node_name]
+
+    def set_parameter(self, node_name: str, name: str, value: Any, timeout: float = 10.0) -> tuple[bool, str]:
+        """Set one parameter through ``/<node>/set_parameters``. Returns (successful, reason)."""
+        client = self.parameters(node_name)
+        self.wait_for(lambda: client.services_are_ready(), timeout, f"parameter services of {node_name}")
+        response = self.wait_future(
+            client.set_parameters([Parameter(name, value=value)]), timeout, f"set {node_name} {name}"
+        )
+        result = response.results[0]
+        return bool(result.successful), str(result.reason)
+
+    def get_parameter(self, node_name: str, name: str, timeout: float = 10.0) -> Any:
+        client = self.parameters(node_name)
+        self.wait_for(lambda: client.services_are_ready(), timeout, f"parameter services of {node_name}")
+        response = self.wait_future(client.get_parameters([name]), timeout, f"get {node_name} {name}")
+        if not response.values:
+            raise KeyError(f"{node_name} has no parameter {name!r}")
+        return Parameter.from_parameter_msg(ParameterMsg(name=name, value=response.values[0])).value

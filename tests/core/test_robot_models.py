@@ -1,0 +1,60 @@
+"""Every registered robot compiles and holds its keyframe under gravity."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+import robot_models
+from sim_bridge import Simulation
+
+HOLD_SECONDS = 10.0
+MAX_BASE_DRIFT_M = 0.02  # horizontal drift of the base over HOLD_SECONDS
+MAX_HEIGHT_LOSS_M = 0.02
+MAX_JOINT_DRIFT_RAD = 0.05
+
+
+@pytest.mark.parametrize("name", robot_models.ROBOT_NAMES)
+def test_robot_holds_its_keyframe_for_ten_seconds(name):
+    robot = robot_models.load(name)
+    sim = Simulation(robot)
+    start = sim.snapshot()
+    sim.step(int(round(HOLD_SECONDS / sim.control_timestep)))
+    end = sim.snapshot()
+    assert sim.time == pytest.approx(HOLD_SECONDS, abs=1e-6)
+    assert np.all(np.isfinite(sim.data.qpos)) and np.all(np.isfinite(sim.data.qvel))
+    drift = np.linalg.norm(end.base.pose.position[:2] - start.base.pose.position[:2])
+    assert drift < MAX_BASE_DRIFT_M
+    assert start.base.pose.position[2] - end.base.pose.position[2] < MAX_HEIGHT_LOSS_M
+    assert np.abs(end.joint_positions - start.joint_positions).max() < MAX_JOINT_DRIFT_RAD
+
+
+def test_g1_has_a_floating_base_and_real_soles():
+    robot = robot_models.load("g1")
+    model = robot.model
+    assert robot.floating_base
+    free = model.body(robot.base_body).jntadr[0]
+    assert model.jnt_type[free] == mujoco.mjtJoint.mjJNT_FREE
+    assert model.nu == 29 and len(robot.actuated_joints) == 29
+    sole = model.geom("left_sole_box")
+    width = 2 * sole.size[1]
+    assert sole.type == mujoco.mjtGeom.mjGEOM_BOX and width >= 0.06, "a sole as wide as a real foot"
+    colliding = [model.geom(i).name for i in range(model.ngeom) if model.geom_contype[i] or model.geom_conaffinity[i]]
+    assert sorted(colliding) == ["floor", "left_sole_box", "right_sole_box"]
+
+
+def test_panda_scene_has_grasp_settings_and_boxes():
+    robot = robot_models.load("panda")
+    model = robot.model
+    assert model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC and model.opt.impratio >= 10
+    assert robot.objects == ("box_0", "box_1", "box_2")
+    for name in robot.objects:
+        assert model.geom(name).condim == 4
+    assert model.neq == 0, "both fingers are actuated; no mimic equality"
+    assert model.actuator("panda_finger_joint1").id >= 0 and model.actuator("panda_finger_joint2").id >= 0
+
+
+def test_unknown_robot_lists_known_names():
+    with pytest.raises(robot_models.UnknownRobotError, match="g1, panda"):
+        robot_models.load("atlas")

@@ -1,0 +1,106 @@
+"""The simulation core: stepping, reset, pacing, and its independence from ROS."""
+
+from __future__ import annotations
+
+import ast
+import pathlib
+
+import numpy as np
+import pytest
+
+import robot_models
+from sim_bridge import Pacer, Simulation, UnknownNameError
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+
+
+@pytest.mark.parametrize("package", ["sim_bridge", "robot_models"])
+def test_core_never_imports_rclpy(package):
+    offenders = []
+    for path in (ROOT / package).rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = []
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.module:
+                names = [node.module]
+            offenders += [f"{path.relative_to(ROOT)}: {n}" for n in names if n.split(".")[0] in ("rclpy", "rosidl_runtime_py")]
+    assert not offenders
+
+
+@pytest.fixture(scope="module")
+def panda_sim():
+    return Simulation(robot_models.load("panda"))
+
+
+def test_control_step_is_a_whole_multiple_of_the_physics_step(panda_sim):
+    ratio = panda_sim.control_timestep / panda_sim.physics_timestep
+    assert ratio == pytest.approx(round(ratio)) and round(ratio) >= 1
+    t0 = panda_sim.time
+    panda_sim.step(10)
+    assert panda_sim.time == pytest.approx(t0 + 10 * panda_sim.control_timestep)
+
+
+def test_reset_restores_state_exactly_and_keeps_time_monotonic(panda_sim):
+    panda_sim.servo.set_targets({"panda_joint1": 0.5})
+    panda_sim.step(100)
+    moved = panda_sim.snapshot()
+    assert moved.joint_positions[0] > 0.3
+    before = panda_sim.time
+    panda_sim.reset()
+    after = panda_sim.snapshot()
+    assert after.time == pytest.approx(before)
+    key = panda_sim.model.key("home")
+    expected = [key.qpos[panda_sim.model.joint(j).qposadr[0]] for j in panda_sim.robot.actuated_joints]
+    np.testing.assert_array_equal(after.joint_positions, expected)
+    with pytest.raises(UnknownNameError, match="home"):
+        panda_sim.reset("nope")
+    assert panda_sim.snapshot().time == pytest.approx(before)
+
+
+def test_servo_refuses_unknown_joints_without_changing_anything(panda_sim):
+    with pytest.raises(UnknownNameError, match="panda_joint1"):
+        panda_sim.servo.set_targets({"panda_joint2": 0.1, "elbow": 0.2})
+    assert not panda_sim.servo.active
+
+
+def test_same_commands_give_the_same_trajectory():
+    runs = []
+    for _ in range(2):
+        sim = Simulation(robot_models.load("panda"))
+        sim.servo.set_targets({"panda_joint1": 0.4, "panda_joint4": -2.0})
+        sim.step(200)
+        runs.append(sim.data.qpos.copy())
+    np.testing.assert_array_equal(runs[0], runs[1])
+
+
+class FakeClock:
+    def __init__(self) -> None:
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def test_pacer_waits_for_wall_time_and_measures_the_achieved_factor():
+    clock = FakeClock()
+    pacer = Pacer(2.0, clock=clock)
+    assert pacer.wait_time(0.0) == 0.0  # anchors
+    assert pacer.wait_time(1.0) == pytest.approx(0.5)  # 1 s of sim at 2x takes 0.5 s of wall
+    for i in range(11):
+        clock.now = 100.0 + 0.1 * i
+        pacer.record(0.2 * i)
+    assert pacer.achieved_factor() == pytest.approx(2.0)
+    pacer.set_factor(0.0)
+    assert pacer.wait_time(50.0) == 0.0
+    with pytest.raises(ValueError, match=">= 0"):
+        pacer.set_factor(-1.0)
+
+
+def test_pacer_reanchors_instead_of_bursting_after_a_stall():
+    clock = FakeClock()
+    pacer = Pacer(1.0, clock=clock)
+    pacer.wait_time(0.0)
+    clock.now += 5.0  # the sim stalled for 5 s of wall time
+    assert pacer.wait_time(0.01) == 0.0
+    assert pacer.wait_time(0.5) == pytest.approx(0.49)

@@ -1,0 +1,6 @@
+"""Test access to the project's process launcher (one implementation, in sim_client)."""
+
+from sim_client.processes import ChildProcess as NodeProcess
+from sim_client.processes import running
+
+__all__ = ["NodeProcess", "running"]

@@ -1,0 +1,186 @@
+"""End-to-end tests of the /sim node, from a client in another process over Fast DDS."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+from nav_msgs.msg import Odometry
+from rcl_interfaces.srv import DescribeParameters
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+from tf2_msgs.msg import TFMessage
+
+import robot_models
+from robot_models import g1_constants
+from sim_interfaces.srv import Reset, Step
+from tests.ros.processes import running
+
+STARTUP_S = 60.0
+
+
+def stamp_s(msg) -> float:
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+def clock_s(msg: Clock) -> float:
+    return msg.clock.sec + msg.clock.nanosec * 1e-9
+
+
+@pytest.fixture(scope="module")
+def g1(client):
+    with running(["sim_node", "--ros-args", "-p", "robot:=g1"]) as process:  # real time: a Python client keeps up
+        clock = client.record(Clock, "/clock", keep=20_000)
+        client.wait_for(lambda: clock.count > 0 or not process.alive(), STARTUP_S, "first /clock from the G1 sim node")
+        assert process.alive(), process.output()
+        yield process
+
+
+def measured_rate(recorder, count: int, client) -> tuple[float, list]:
+    recorder.clear()
+    start = recorder.count
+    client.wait_for(lambda: recorder.count - start >= count, 60.0, f"{count} messages")
+    messages = recorder.messages()[-count:]
+    stamps = [stamp_s(m) for m in messages]
+    return (len(stamps) - 1) / (stamps[-1] - stamps[0]), messages
+
+
+def test_joint_states_arrive_at_the_configured_rate_stamped_with_sim_time(client, g1):
+    joints = client.record(JointState, "/joint_states", keep=5000)
+    clock = client.record(Clock, "/clock", keep=5000)
+    rate, messages = measured_rate(joints, 400, client)
+    assert rate == pytest.approx(200.0, rel=0.04)
+    assert list(messages[-1].name) == list(g1_constants.ALL_JOINTS)
+    stamps = [stamp_s(m) for m in messages]
+    assert all(b > a for a, b in zip(stamps, stamps[1:])), "stamps must increase"
+    latest_clock = clock_s(clock.latest)
+    assert stamps[-1] < 1e6, "stamps are sim time, not wall-clock epoch time"
+    assert abs(latest_clock - stamps[-1]) < 5.0
+    assert all(math.isfinite(v) for v in messages[-1].position)
+
+    ok, reason = client.set_parameter("sim", "joint_state_rate", 100.0)
+    assert ok, reason
+    try:
+        rate, _ = measured_rate(joints, 200, client)
+        assert rate == pytest.approx(100.0, rel=0.04)
+    finally:
+        assert client.set_parameter("sim", "joint_state_rate", 200.0)[0]
+
+
+def test_odom_and_tf_describe_the_standing_robot(client, g1):
+    odom = client.record(Odometry, "/odom")
+    tf = client.record(TFMessage, "/tf", keep=2000)
+    client.wait_for(lambda: odom.count > 3, 30.0, "/odom")
+    msg = odom.latest
+    assert msg.header.frame_id == "odom" and msg.child_frame_id == g1_constants.ROOT_BODY
+    assert 0.65 < msg.pose.pose.position.z < 0.85, "the G1 pelvis stands at about 0.76 m"
+
+    def frames():
+        return {(t.header.frame_id, t.child_frame_id) for m in tf.messages() for t in m.transforms}
+
+    client.wait_for(lambda: ("odom", "pelvis") in frames() and ("pelvis", "left_hip_pitch_link") in frames(), 30.0, "/tf frames")
+    children = {child for _, child in frames()}
+    assert g1_constants.LEFT_FOOT_BODY in children and g1_constants.RIGHT_HAND_BODY in children
+
+
+def test_clock_follows_the_real_time_factor(client, g1):
+    clock = client.record(Clock, "/clock", keep=50_000)
+
+    def factor(window_s: float) -> float:
+        client.wait_for(lambda: clock.count > 0, 10.0, "/clock")
+        sim0, wall0 = clock_s(clock.latest), time.monotonic()
+        client.wait_for(lambda: time.monotonic() - wall0 >= window_s, window_s + 5.0, "measurement window")
+        return (clock_s(clock.latest) - sim0) / (time.monotonic() - wall0)
+
+    assert client.set_parameter("sim", "real_time_factor", 1.0)[0]
+    try:
+        paced = factor(3.0)
+        assert 0.75 < paced < 1.1, f"at real_time_factor 1 the clock ran {paced:.2f}x"
+        assert client.set_parameter("sim", "real_time_factor", 0.0)[0]
+        unpaced = factor(2.0)
+        assert unpaced > 2.0 * paced, f"as fast as possible ran only {unpaced:.2f}x"
+    finally:
+        client.set_parameter("sim", "real_time_factor", 1.0)
+
+
+@pytest.mark.parametrize(
+    ("name", "value", "reason_must_mention"),
+    [
+        ("real_time_factor", -1.0, "0.0"),  # below the range: the reason states the range
+        ("joint_state_rate", 5000.0, "500"),  # above the range
+        ("joint_state_rate", -3.0, "1.0"),  # a negative rate
+        ("joint_state_rate", "fast", "type"),  # wrong type
+        ("real_time_factor", 1, "type"),  # an integer for a double
+        ("robot", "panda", "read-only"),  # read-only parameter
+    ],
+)
+def test_bad_parameter_values_are_refused_with_a_reason_and_the_node_keeps_running(
+    client, g1, name, value, reason_must_mention
+):
+    ok, reason = client.set_parameter("sim", name, value)
+    assert not ok
+    assert reason_must_mention.lower() in reason.lower(), reason
+    clock = client.record(Clock, "/clock")
+    client.wait_for(lambda: clock.count > 5, 20.0, "/clock after a refused parameter")
+    assert g1.alive()
+
+
+def test_parameters_are_described_with_ranges(client, g1):
+    response = client.call(DescribeParameters, "/sim/describe_parameters",
+                           DescribeParameters.Request(names=["real_time_factor", "joint_state_rate", "robot"]))
+    rtf, rate, robot = response.descriptors
+    assert rtf.floating_point_range[0].from_value == 0.0 and rtf.description
+    assert rate.floating_point_range[0].to_value == 500.0
+    assert robot.read_only
+
+
+def test_reset_restores_the_keyframe_exactly_and_time_keeps_running(client, g1):
+    keyframe = robot_models.load("g1").model.key("stand")
+    model = robot_models.load("g1").model
+    expected = np.array([keyframe.qpos[model.joint(j).qposadr[0]] for j in g1_constants.ALL_JOINTS])
+    joints = client.record(JointState, "/joint_states", keep=20_000)
+    clock = client.record(Clock, "/clock", keep=50_000)
+    client.wait_for(lambda: joints.count > 50, 20.0, "/joint_states")
+    before = np.array(joints.latest.position)
+    assert np.abs(before - expected).max() > 1e-6, "the standing robot has settled away from the keyframe"
+
+    response = client.call(Reset, "/sim/reset", Reset.Request())
+    assert response.success, response.message
+    client.wait_for(lambda: any(abs(stamp_s(m) - response.sim_time) < 1e-9 for m in joints.messages()), 20.0,
+                    "the joint state published at the reset instant")
+    # The last message stamped with the reset instant is the one published after the reset.
+    at_reset = [m for m in joints.messages() if abs(stamp_s(m) - response.sim_time) < 1e-9][-1]
+    np.testing.assert_allclose(np.array(at_reset.position), expected, atol=1e-9)
+    client.wait_for(lambda: clock_s(clock.latest) > response.sim_time + 0.5, 20.0, "clock after reset")
+    times = [clock_s(m) for m in clock.messages()]
+    assert all(b >= a for a, b in zip(times, times[1:])), "the clock must stay monotonic across a reset"
+
+    bad = client.call(Reset, "/sim/reset", Reset.Request(keyframe="lying_down"))
+    assert not bad.success and "stand" in bad.message
+
+
+def test_pause_step_and_resume(client, g1):
+    assert client.call(Trigger, "/sim/pause", Trigger.Request()).success
+    try:
+        first = client.call(Step, "/sim/step", Step.Request(steps=1))
+        assert first.success, first.message
+        stepped = client.call(Step, "/sim/step", Step.Request(steps=25))
+        assert stepped.success, stepped.message
+        assert stepped.sim_time == pytest.approx(first.sim_time + 25 * 0.004, abs=1e-9)
+        refused = client.call(Step, "/sim/step", Step.Request(steps=0))
+        assert not refused.success and "1" in refused.message
+    finally:
+        assert client.call(Trigger, "/sim/resume", Trigger.Request()).success
+    not_paused = client.call(Step, "/sim/step", Step.Request(steps=3))
+    assert not not_paused.success and "pause" in not_paused.message
+
+
+def test_unknown_robot_is_refused_with_the_known_names():
+    with running(["sim_node", "--ros-args", "-p", "robot:=atlas"]) as process:
+        code = process.process.wait(timeout=STARTUP_S)
+        assert code == 2, "the node must exit with status 2 when the robot is unknown"
+        output = process.output()
+        assert "atlas" in output and "g1" in output and "panda" in output

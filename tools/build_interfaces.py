@@ -1,0 +1,92 @@
+"""Build the ROS 2 interface packages in ``interfaces/`` into the active venv.
+
+Usage: ``.venv/bin/python tools/build_interfaces.py``. Idempotent (CMake rebuilds what changed).
+
+Two fixes are needed before the wheels' CMake files can build anything (see the project notes):
+1. their exported CMake files name the build farm's Python include and numpy include paths;
+   these are rewritten to this interpreter's paths;
+2. the generators run with this venv's Python, so the build runs with the wheels' start-up hook
+   marked as done and ``LD_LIBRARY_PATH`` already set, so nothing re-executes mid-build.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import pathlib
+import subprocess
+import sys
+import sysconfig
+
+import numpy
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+PACKAGES = ("tf2_msgs", "sim_interfaces")  # build order
+FARM_PYTHON_INCLUDE = "/opt/python/cp311-cp311/include/python3.11"
+FARM_NUMPY_INCLUDE = "/opt/python/cp311-cp311/lib/python3.11/site-packages/numpy/_core/include"
+
+
+def venv_prefix() -> pathlib.Path:
+    return pathlib.Path(sys.prefix)
+
+
+def fix_exported_cmake_paths(prefix: pathlib.Path) -> int:
+    """Point the wheels' CMake files at this interpreter's include directories. Returns files changed."""
+    replacements = {
+        FARM_PYTHON_INCLUDE: sysconfig.get_paths()["include"],
+        FARM_NUMPY_INCLUDE: numpy.get_include(),
+    }
+    changed = 0
+    for path in glob.glob(str(prefix / "share" / "*" / "cmake" / "*.cmake")):
+        text = pathlib.Path(path).read_text()
+        new = text
+        for old, replacement in replacements.items():
+            new = new.replace(old, replacement)
+        if new != text:
+            pathlib.Path(path).write_text(new)
+            changed += 1
+    return changed
+
+
+def build_environment(prefix: pathlib.Path) -> dict[str, str]:
+    site = pathlib.Path(sysconfig.get_paths()["purelib"])
+    libs = [str(prefix / "lib")] + sorted(glob.glob(str(site / "ros_*.libs")))
+    env = dict(os.environ)
+    env["LD_LIBRARY_PATH"] = os.pathsep.join(libs + [env.get("LD_LIBRARY_PATH", "")]).rstrip(os.pathsep)
+    env["_ROS_WHEELS_BOOTSTRAP_COMPLETE"] = "1"
+    env["AMENT_PREFIX_PATH"] = str(prefix)
+    env["CMAKE_PREFIX_PATH"] = str(prefix)
+    env["PATH"] = f"{prefix / 'bin'}{os.pathsep}{env.get('PATH', '')}"
+    return env
+
+
+def build_package(name: str, prefix: pathlib.Path, env: dict[str, str]) -> None:
+    source = ROOT / "interfaces" / name
+    build = ROOT / "build" / name
+    build.mkdir(parents=True, exist_ok=True)
+    configure = [
+        "cmake", "-S", str(source), "-B", str(build),
+        f"-DCMAKE_PREFIX_PATH={prefix}", f"-DCMAKE_INSTALL_PREFIX={prefix}",
+        f"-DPython3_EXECUTABLE={prefix / 'bin' / 'python'}", "-DBUILD_TESTING=OFF",
+        "-DCMAKE_BUILD_TYPE=Release", "-Wno-dev",
+    ]
+    for command in (configure, ["cmake", "--build", str(build), "-j", "2"], ["cmake", "--install", str(build)]):
+        result = subprocess.run(command, env=env, cwd=build, capture_output=True, text=True)
+        if result.returncode != 0:
+            sys.stderr.write(result.stdout[-4000:] + result.stderr[-4000:])
+            raise SystemExit(f"building interface package {name} failed: {' '.join(command[:2])}")
+
+
+def main() -> None:
+    prefix = venv_prefix()
+    if prefix == pathlib.Path(sys.base_prefix):
+        raise SystemExit("run this with the project's venv Python (.venv/bin/python)")
+    fix_exported_cmake_paths(prefix)
+    env = build_environment(prefix)
+    for name in PACKAGES:
+        build_package(name, prefix, env)
+        print(f"built and installed interface package {name} into {prefix}")
+
+
+if __name__ == "__main__":
+    main()
