@@ -33,11 +33,6 @@ class InLoopPlugins:
         self._cmd_vel_time = -float("inf")
         self._warned_no_locomotion = False
 
-    @property
-    def needs_every_step(self) -> bool:
-        """True when a command must be checked every control step (e.g. /cmd_vel timeout)."""
-        return False
-
     def on_cmd_vel(self, msg: Twist) -> None:
         with self._lock:
             self._cmd_vel = (msg.linear.x, msg.linear.y, msg.angular.z)

@@ -8,11 +8,13 @@ each change is atomic with respect to stepping.
 
 from __future__ import annotations
 
+import array
 import math
 import sys
 import threading
 from dataclasses import dataclass
 
+import numpy as np
 import rclpy
 from geometry_msgs.msg import Pose as PoseMsg
 from geometry_msgs.msg import TransformStamped, Twist
@@ -49,10 +51,10 @@ PARAMETERS = (
     ParameterSpec("start_paused", False, "start with the physics paused (use ~/resume or ~/step)", read_only=True),
     ParameterSpec("real_time_factor", 1.0, "sim seconds per wall second; 0 = as fast as possible", 0.0, 1000.0),
     ParameterSpec("joint_state_rate", 200.0, "/joint_states publish rate [Hz of sim time]", 1.0, 500.0),
-    ParameterSpec("clock_rate", 250.0, "/clock publish rate [Hz of sim time]; keep >= the fastest timer of any node", 10.0, 500.0),
-    ParameterSpec("odom_rate", 50.0, "/odom and odom->base /tf publish rate [Hz of sim time]", 1.0, 500.0),
+    ParameterSpec("clock_rate", 100.0, "/clock publish rate [Hz of sim time]; keep >= the fastest timer of any node on sim time", 10.0, 500.0),
+    ParameterSpec("odom_rate", 30.0, "/odom and odom->base /tf publish rate [Hz of sim time]", 1.0, 500.0),
     ParameterSpec("link_tf_rate", 10.0, "/tf rate of the link transforms [Hz of sim time]; 0 = off", 0.0, 500.0),
-    ParameterSpec("state_rate", 50.0, "rate of /objects and controller state topics [Hz of sim time]", 1.0, 500.0),
+    ParameterSpec("state_rate", 30.0, "rate of /objects and controller state topics [Hz of sim time]", 1.0, 500.0),
     ParameterSpec("cmd_vel_timeout", 0.5, "a /cmd_vel older than this [s of sim time] counts as zero", 0.05, 10.0),
 )
 RATE_PARAMETERS = ("joint_state_rate", "clock_rate", "odom_rate", "link_tf_rate", "state_rate")
@@ -168,8 +170,10 @@ class SimNode(LifecycleNode):
         self._odom_frame = "odom" if robot.floating_base else "world"
         self._odom_msg.header.frame_id = self._odom_frame
         self._odom_msg.child_frame_id = robot.base_body
-        base_pair = [("world", robot.base_body)]
-        self._base_tf = TransformSet(sim, base_pair, {"world": self._odom_frame})
+        base_tf = TransformStamped()
+        base_tf.header.frame_id = self._odom_frame
+        base_tf.child_frame_id = robot.base_body
+        self._base_tf_msg = TFMessage(transforms=[base_tf])
         self._object_tf = TransformSet(sim, [("world", name) for name in robot.objects])
         self._link_tf = TransformSet(sim, link_pairs(sim))
         self._objects_msg = ObjectStates(names=list(robot.objects), poses=[PoseMsg() for _ in robot.objects])
@@ -236,10 +240,7 @@ class SimNode(LifecycleNode):
                 continue
             with self._lock:
                 self._advance_to_next_event()
-            self._pacer.record(self.sim.time)
-            wait = self._pacer.wait_time(self.sim.time)
-            if wait > 0.0:
-                self._stop.wait(wait)
+            self._pacer.pace(self.sim.time)
 
     def _advance_to_next_event(self) -> None:
         """Step whole control steps up to the next publication due, then publish what is due."""
@@ -248,13 +249,11 @@ class SimNode(LifecycleNode):
         schedule = self._schedule
         now = sim.time
         due = min(schedule.clock, schedule.joint_states, schedule.odom, schedule.link_tf, schedule.state)
-        dt = sim.control_timestep
+        dt = sim.physics_timestep
         steps = max(1, min(int(MAX_CHUNK_S / dt), math.ceil((due - now) / dt - 1e-6)))
-        if self.plugins.needs_every_step:
-            steps = 1
         self.plugins.before_step(now)
         try:
-            sim.step(steps)
+            sim.step_physics(steps)
         except SimulationFaultError as error:
             self._fault_count += 1
             self.get_logger().error(f"{error}; resetting to keyframe {sim.robot.default_keyframe!r}")
@@ -279,7 +278,9 @@ class SimNode(LifecycleNode):
             self._publish_odom(now)
             schedule.odom = _next_due(schedule.odom, periods["odom"], now)
         if len(self._link_tf) and (force or now + eps >= schedule.link_tf):
-            self._tf_pub.publish(self._link_tf.update(sim.data, now))
+            # The link transforms are the costliest message; built only when someone listens.
+            if self._tf_pub.get_subscription_count() > 0:
+                self._tf_pub.publish(self._link_tf.update(sim.data, now))
             schedule.link_tf = _next_due(schedule.link_tf, periods["link_tf"], now)
         if force or now + eps >= schedule.state:
             if len(self._object_tf):
@@ -289,12 +290,13 @@ class SimNode(LifecycleNode):
 
     def _publish_joint_states(self, now: float) -> None:
         assert self.sim is not None
-        state = self.sim.snapshot()
+        positions, velocities, efforts = self.sim.joint_arrays()
         msg = self._joint_msg
         set_time(msg.header.stamp, now)
-        msg.position = state.joint_positions.tolist()
-        msg.velocity = state.joint_velocities.tolist()
-        msg.effort = state.joint_efforts.tolist()
+        # array.array takes the generated setters' fast path (no per-element checks).
+        msg.position = _float64_array(positions)
+        msg.velocity = _float64_array(velocities)
+        msg.effort = _float64_array(efforts)
         self._joint_pub.publish(msg)
 
     def _publish_odom(self, now: float) -> None:
@@ -309,7 +311,13 @@ class SimNode(LifecycleNode):
         twist.linear.x, twist.linear.y, twist.linear.z = v[0], v[1], v[2]
         twist.angular.x, twist.angular.y, twist.angular.z = w[0], w[1], w[2]
         self._odom_pub.publish(msg)
-        self._tf_pub.publish(self._base_tf.update(self.sim.data, now))
+        transform = self._base_tf_msg.transforms[0]
+        set_time(transform.header.stamp, now)
+        position, orientation = msg.pose.pose.position, msg.pose.pose.orientation
+        translation, rotation = transform.transform.translation, transform.transform.rotation
+        translation.x, translation.y, translation.z = position.x, position.y, position.z
+        rotation.w, rotation.x, rotation.y, rotation.z = orientation.w, orientation.x, orientation.y, orientation.z
+        self._tf_pub.publish(self._base_tf_msg)
 
     def _publish_objects(self, now: float) -> None:
         assert self.sim is not None
@@ -393,17 +401,21 @@ class SimNode(LifecycleNode):
         assert sim is not None and self.plugins is not None
         schedule = self._schedule
         due = min(schedule.clock, schedule.joint_states, schedule.odom, schedule.link_tf, schedule.state, target)
-        dt = sim.control_timestep
+        dt = sim.physics_timestep
         steps = max(1, math.ceil((due - sim.time) / dt - 1e-6))
-        if self.plugins.needs_every_step:
-            steps = 1
         self.plugins.before_step(sim.time)
-        sim.step(steps)
+        sim.step_physics(steps)
         self._publish_due(sim.time)
 
     def destroy(self) -> None:
         self._stop_thread()
         self.destroy_node()
+
+
+def _float64_array(values: np.ndarray) -> array.array:
+    result = array.array("d")
+    result.frombytes(np.ascontiguousarray(values, dtype=np.float64).tobytes())
+    return result
 
 
 def _next_due(previous: float, period: float, now: float) -> float:

@@ -5,8 +5,6 @@ Nothing here knows about ROS. The sim node is the only caller that steps it.
 
 from __future__ import annotations
 
-import math
-
 import mujoco
 import numpy as np
 
@@ -15,6 +13,9 @@ from sim_bridge.controller import Controller, Slot
 from sim_bridge.errors import SimulationFaultError, UnknownNameError
 from sim_bridge.servo import JointServo
 from sim_bridge.state import BaseState, Pose, SimState
+
+
+_BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
 
 
 class Simulation:
@@ -49,6 +50,7 @@ class Simulation:
             self._base_qpos_adr = int(self.model.jnt_qposadr[joint_id])
             self._base_dof_adr = int(self.model.jnt_dofadr[joint_id])
         self._warnings_seen = 0
+        self._phase = 0  # physics steps since the last control update
         self.reset(robot.default_keyframe, keep_time=False)
 
     # ----- controllers -------------------------------------------------------------------
@@ -86,24 +88,49 @@ class Simulation:
         Raises:
             SimulationFaultError: the physics diverged; call :meth:`reset`.
         """
-        remaining = int(control_steps)
+        self.step_physics(int(control_steps) * self.decimation)
+
+    def step_physics(self, physics_steps: int) -> None:
+        """Advance by physics steps, running the controllers at every control-step boundary.
+
+        The control grid is kept whatever ``physics_steps`` is: controllers run when the number
+        of physics steps since the last control update reaches the decimation.
+
+        Raises:
+            SimulationFaultError: the physics diverged; call :meth:`reset`.
+        """
+        remaining = int(physics_steps)
+        model, data = self.model, self.data
         while remaining > 0:
-            active = [c for c in self._controllers.values() if c.active]
-            if not active:
-                mujoco.mj_step(self.model, self.data, nstep=self.decimation * remaining)
-                break
-            mujoco.mj_step1(self.model, self.data)
-            for controller in active:
-                controller.update(self.model, self.data, self.control_timestep)
-            mujoco.mj_step2(self.model, self.data)
-            if self.decimation > 1:
-                mujoco.mj_step(self.model, self.data, nstep=self.decimation - 1)
-            remaining -= 1
+            if self._phase == 0:
+                active = [c for c in self._controllers.values() if c.active]
+                if not active:
+                    # Nothing to run: batch to the last control boundary within reach, then the rest.
+                    whole = remaining - remaining % self.decimation
+                    if whole:
+                        mujoco.mj_step(model, data, nstep=whole)
+                        remaining -= whole
+                        continue
+                    mujoco.mj_step(model, data, nstep=remaining)
+                    self._phase = remaining
+                    break
+                mujoco.mj_step1(model, data)
+                for controller in active:
+                    controller.update(model, data, self.control_timestep)
+                mujoco.mj_step2(model, data)
+                self._phase = 1 % self.decimation
+                remaining -= 1
+                continue
+            chunk = min(remaining, self.decimation - self._phase)
+            mujoco.mj_step(model, data, nstep=chunk)
+            self._phase = (self._phase + chunk) % self.decimation
+            remaining -= chunk
         self._check_fault()
 
     def _check_fault(self) -> None:
-        warnings = int(self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number)
-        if warnings != self._warnings_seen or not math.isfinite(self.data.qpos.sum()):
+        # MuJoCo counts bad accelerations (and resets the state itself); NaN can only come with them.
+        warnings = self.data.warning[_BADQACC].number
+        if warnings != self._warnings_seen:
             self._warnings_seen = warnings
             raise SimulationFaultError(f"physics diverged at t={self.time:.3f} s (bad accelerations); reset the simulation")
 
@@ -123,6 +150,7 @@ class Simulation:
         if keep_time:
             self.data.time = now
         mujoco.mj_forward(self.model, self.data)
+        self._phase = 0
         self._warnings_seen = int(self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number)
         for controller in self._controllers.values():
             controller.reset(self.model, self.data)
@@ -142,6 +170,11 @@ class Simulation:
         quat = np.empty(4)
         mujoco.mju_mat2Quat(quat, data.xmat[self._base_body])
         return BaseState(Pose(data.xpos[self._base_body].copy(), quat), np.zeros(3), np.zeros(3))
+
+    def joint_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Positions, velocities and actuator efforts of the actuated joints, shape (n,) each."""
+        data = self.data
+        return data.qpos[self._qpos_adr], data.qvel[self._dof_adr], data.actuator_force[self._actuator_ids]
 
     def snapshot(self) -> SimState:
         """The state at this instant as typed values."""

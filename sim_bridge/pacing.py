@@ -20,6 +20,7 @@ class Pacer:
     """
 
     MAX_LAG_S = 0.1
+    SAMPLE_SPACING_S = 0.01
 
     def __init__(self, factor: float, clock: Callable[[], float] = time.monotonic, window_s: float = 1.0) -> None:
         self._clock = clock
@@ -59,12 +60,27 @@ class Pacer:
             return 0.0
         return max(0.0, due - now)
 
+    def pace(self, sim_time: float) -> None:
+        """Record that the simulation reached ``sim_time``, then sleep until it is due on the wall clock.
+
+        This is the real-time loop's own rhythm (not a wait for an event); a sleep is at most
+        one stretch of stepping long, so a stop request is seen within that time.
+        """
+        self.record(sim_time)
+        wait = self.wait_time(sim_time)
+        if wait > 0.0:
+            time.sleep(wait)
+
     def record(self, sim_time: float) -> None:
         """Record that the simulation reached ``sim_time`` now (for the achieved factor)."""
         now = self._clock()
-        self._samples.append((now, sim_time))
-        while len(self._samples) > 2 and now - self._samples[0][0] > self._window_s:
-            self._samples.popleft()
+        samples = self._samples
+        if samples and now - samples[-1][0] < self.SAMPLE_SPACING_S:
+            samples[-1] = (now, sim_time)  # keep the window short: overwrite the newest sample
+            return
+        samples.append((now, sim_time))
+        while len(samples) > 2 and now - samples[0][0] > self._window_s:
+            samples.popleft()
 
     def achieved_factor(self) -> float:
         """Sim seconds per wall second over the last window (0 until two samples exist)."""

@@ -104,3 +104,34 @@ def test_pacer_reanchors_instead_of_bursting_after_a_stall():
     clock.now += 5.0  # the sim stalled for 5 s of wall time
     assert pacer.wait_time(0.01) == 0.0
     assert pacer.wait_time(0.5) == pytest.approx(0.49)
+
+
+class CountingController:
+    """Records the physics time of each control update."""
+
+    def __init__(self) -> None:
+        self.times: list[float] = []
+
+    @property
+    def active(self) -> bool:
+        return True
+
+    def reset(self, model, data) -> None:
+        self.times.clear()
+
+    def update(self, model, data, control_dt: float) -> None:
+        self.times.append(float(data.time))
+
+
+def test_controllers_run_on_the_control_grid_whatever_the_physics_chunks():
+    from sim_bridge import Slot
+
+    sim = Simulation(robot_models.load("panda"))
+    counter = CountingController()
+    sim.set_controller(Slot.ARM, counter)
+    t0 = sim.time
+    for chunk in (1, 3, 2, 5, 1, 4):  # 16 physics steps in uneven chunks
+        sim.step_physics(chunk)
+    assert sim.time == pytest.approx(t0 + 16 * sim.physics_timestep)
+    expected = [t0 + k * sim.control_timestep for k in range(16 // sim.decimation)]
+    np.testing.assert_allclose(counter.times, expected, atol=1e-9)
