@@ -15,6 +15,7 @@ from rclpy.lifecycle import TransitionCallbackReturn
 from rclpy.parameter import Parameter
 
 import robot_models
+from nodes.common import sim_time_overrides
 from nodes.sim_node import SimNode
 
 
@@ -26,9 +27,12 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
-def server_nodes_for(robot: str) -> list:
+def server_nodes_for(robot: str, overrides: list[Parameter]) -> list:
     """The action-server nodes that exist for ``robot`` (all on sim time)."""
-    return []
+    from nodes.arm_server import ArmServer
+
+    nodes = [ArmServer(robot, parameter_overrides=overrides)]
+    return nodes
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -47,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
         rclpy.try_shutdown()
         return 2
     sim.trigger_activate()
-    nodes = [sim, *server_nodes_for(options.robot)]
+    nodes = [sim, *server_nodes_for(options.robot, sim_time_overrides(ros_args))]
     executor = MultiThreadedExecutor(num_threads=4)
     for node in nodes:
         executor.add_node(node)

@@ -250,7 +250,8 @@ class SimNode(LifecycleNode):
         now = sim.time
         due = min(schedule.clock, schedule.joint_states, schedule.odom, schedule.link_tf, schedule.state)
         dt = sim.physics_timestep
-        steps = max(1, min(int(MAX_CHUNK_S / dt), math.ceil((due - now) / dt - 1e-6)))
+        chunk = min(MAX_CHUNK_S, self.plugins.max_chunk)
+        steps = max(1, min(int(chunk / dt), math.ceil((due - now) / dt - 1e-6)))
         self.plugins.before_step(now)
         try:
             sim.step_physics(steps)

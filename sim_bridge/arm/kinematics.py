@@ -23,6 +23,8 @@ from sim_bridge.errors import InvalidGoalError, UnknownNameError
 from sim_bridge.state import Pose
 
 _SOLVER = "daqp"
+OFFLINE_DT = 0.1  # [s] step length of offline solves
+OFFLINE_STEP = 0.04  # [rad] largest joint change per offline step
 
 
 # ----- small pose helpers ------------------------------------------------------------------------
@@ -237,8 +239,11 @@ class IKProblem:
         self.posture_task = mink.PostureTask(model, cost=posture_cost)
         self.posture_task.set_target(posture_qpos)
         self.limits: list[mink.Limit] = [mink.ConfigurationLimit(model)]
-        if velocity_limited:
-            self.limits.append(mink.VelocityLimit(model, {j: config.joint_velocity_limit for j in info.joints}))
+        # Offline solves take steps of dt = OFFLINE_DT: their velocity limit bounds each step to
+        # OFFLINE_STEP rad so the collision limit cannot be tunnelled through in one big step.
+        speed = config.joint_velocity_limit if velocity_limited else OFFLINE_STEP / OFFLINE_DT
+        self.limits.append(mink.VelocityLimit(model, {j: speed for j in info.joints}))
+        self._pairs = [(a, b) for group_a, group_b in collision_pairs for a in group_a for b in group_b]
         if collision_pairs:
             self.limits.append(mink.CollisionAvoidanceLimit(
                 model, collision_pairs,
@@ -259,6 +264,13 @@ class IKProblem:
         q[self.info.qpos_adr] = np.clip(q[self.info.qpos_adr], self._lower, self._upper)
         self.configuration.update(q)
 
+    def clearance(self) -> float:
+        """Smallest distance between the arm links and the obstacles in the IK configuration [m] (inf if none)."""
+        fromto = np.empty(6)
+        model, data = self.configuration.model, self.configuration.data
+        distances = [mujoco.mj_geomDistance(model, data, a, b, 0.1, fromto) for a, b in self._pairs]
+        return min(distances, default=math.inf)
+
     @property
     def arm_q(self) -> np.ndarray:
         """The arm's joint positions in the IK configuration [rad], shape (n,)."""
@@ -276,14 +288,25 @@ class IKProblem:
         orientation_error = 0.0 if position_only else rotation_error(target.orientation_wxyz, tool.orientation_wxyz)
         return position_error, orientation_error
 
-    def iterate(self, target: Pose, position_only: bool, dt: float, iterations: int, tolerance: tuple[float, float]) -> int:
-        """Run up to ``iterations`` IK steps of length ``dt`` [s] toward ``target``; returns steps used."""
+    def iterate(
+        self, target: Pose, position_only: bool, dt: float, iterations: int, tolerance: tuple[float, float],
+        stall_window: int = 0,
+    ) -> int:
+        """Run up to ``iterations`` IK steps of length ``dt`` [s] toward ``target``; returns steps used.
+
+        With ``stall_window`` > 0, stop when the error shrank by less than 1 um (+ 1e-5 rad) over
+        that many steps (converged as far as the limits allow).
+        """
         self.frame_task.set_target(_se3(target))
         self.frame_task.set_orientation_cost(0.0 if position_only else self.config.frame_orientation_cost)
         tasks = [self.frame_task, self.posture_task]
+        history: list[float] = []
         for step in range(iterations):
             position_error, orientation_error = self.errors(target, position_only)
             if position_error <= tolerance[0] and orientation_error <= tolerance[1]:
+                return step
+            history.append(position_error + 0.1 * orientation_error)
+            if stall_window and len(history) > stall_window and history[-1 - stall_window] - history[-1] < 1e-6:
                 return step
             try:
                 velocity = mink.solve_ik(
@@ -313,14 +336,22 @@ def solve_offline(problem: IKProblem, target: Pose, position_only: bool, seeds: 
     best: IKResult | None = None
     for seed in seeds:
         problem.set_configuration(qpos, seed)
-        used = problem.iterate(target, position_only, 0.1, config.offline_ik_iterations, fine)
+        used = problem.iterate(target, position_only, OFFLINE_DT, config.offline_ik_iterations, fine, stall_window=10)
         position_error, orientation_error = problem.errors(target, position_only)
-        success = position_error <= config.position_tolerance and orientation_error <= config.orientation_tolerance
-        reason = "" if success else (
-            f"IK converged {position_error * 1000:.1f} mm / {orientation_error:.3f} rad from the target "
-            f"(tolerance {config.position_tolerance * 1000:.1f} mm / {config.orientation_tolerance:.3f} rad): "
-            "joint limits or collision avoidance block it"
-        )
+        clearance = problem.clearance()
+        on_target = position_error <= config.position_tolerance and orientation_error <= config.orientation_tolerance
+        collides = clearance < config.collision_min_distance - 0.002
+        if not on_target:
+            reason = (
+                f"IK converged {position_error * 1000:.1f} mm / {orientation_error:.3f} rad from the target "
+                f"(tolerance {config.position_tolerance * 1000:.1f} mm / {config.orientation_tolerance:.3f} rad): "
+                "joint limits or collision avoidance block it"
+            )
+        elif collides:
+            reason = f"IK solution puts the arm links {clearance * 1000:.1f} mm from an obstacle (in collision)"
+        else:
+            reason = ""
+        success = not reason
         result = IKResult(problem.info.joints, problem.arm_q, position_error, orientation_error, success, reason, used)
         if success:
             return result

@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 
 from sim_bridge.arm.controller import ArmController
-from sim_bridge.arm.kinematics import mat_to_quat, quat_to_mat, validate_pose
+from sim_bridge.arm.kinematics import quat_to_mat
 from sim_bridge.errors import InvalidGoalError, UnknownNameError
 from sim_bridge.state import Pose
 
@@ -211,8 +211,16 @@ class PickPlace:
         if not info.gripper_joints:
             with_gripper = [a for a, i in self.arm.arms.items() if i.gripper_joints]
             raise InvalidGoalError(f"arm {goal.arm!r} has no gripper; arms with a gripper: {', '.join(with_gripper) or 'none'}")
+        bounds = self.arm.kinematics.scene.table_xy_bounds
+        x, y, _ = goal.place_position
+        margin = self.half_size
+        if bounds is not None and not (bounds[0] + margin <= x <= bounds[1] - margin and bounds[2] + margin <= y <= bounds[3] - margin):
+            raise InvalidGoalError(
+                f"place position ({x:.3f}, {y:.3f}) is off the table: x must be in [{bounds[0] + margin:.3f}, "
+                f"{bounds[1] - margin:.3f}] m and y in [{bounds[2] + margin:.3f}, {bounds[3] - margin:.3f}] m")
         data = self._require_data()
-        body = self._model.body(goal.object_name).id if self._model is not None else -1
+        assert self._model is not None  # set with the data
+        body = self._model.body(goal.object_name).id
         self._run = _Run(goal=goal, object_body=body, start_position=data.xpos[body].copy(), stage_started=float(data.time))
 
     def cancel(self) -> None:
@@ -303,8 +311,7 @@ class PickPlace:
         size = 2.0 * self.half_size
         if stage == PickPlaceStage.APPROACH:
             if not run.stage_commanded:
-                tool_yaw = _yaw_of(mat_to_quat(self._tool(data, run)[1]))
-                del tool_yaw  # the grasp yaw is chosen near yaw 0, the middle of the wrist's range
+                # Of the box's four equivalent yaws, grasp at the one nearest tool yaw 0 (mid wrist range).
                 run.grasp_yaw = _nearest_quarter_turn(_yaw_of(data.xquat[run.object_body]), 0.0)
                 self.arm.set_gripper(goal.arm, min(size + 2 * self.RELEASE_CLEARANCE, self.arm.kinematics.scene.gripper_open_width), goal.grip_force)
                 run.stage_commanded = self._move(run, object_position + [0.0, 0.0, goal.approach_height], run.grasp_yaw, goal.transport_speed)

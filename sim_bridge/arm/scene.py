@@ -27,6 +27,7 @@ class ArmSceneConfig:
             enable them in the IK model so mink's collision limit uses them.
         objects_table_top_z: height of the surface objects rest on [m] (None when no table).
         object_half_size: half edge of the graspable boxes [m].
+        table_xy_bounds: (x_min, x_max, y_min, y_max) of the table top [m] (None when no table).
     """
 
     grippers: dict[str, tuple[str, ...]] = field(default_factory=dict)
@@ -37,6 +38,7 @@ class ArmSceneConfig:
     make_visuals_collide: bool = False
     objects_table_top_z: float | None = None
     object_half_size: float = 0.0
+    table_xy_bounds: tuple[float, float, float, float] | None = None
 
 
 def scene_config(robot: RobotSpec) -> ArmSceneConfig:
@@ -49,6 +51,12 @@ def scene_config(robot: RobotSpec) -> ArmSceneConfig:
             collision_from_joint=3,
             objects_table_top_z=panda_constants.TABLE_TOP_Z,
             object_half_size=panda_constants.BOX_HALF_SIZE,
+            table_xy_bounds=(
+                panda_constants.TABLE_CENTER[0] - panda_constants.TABLE_HALF_SIZE[0],
+                panda_constants.TABLE_CENTER[0] + panda_constants.TABLE_HALF_SIZE[0],
+                panda_constants.TABLE_CENTER[1] - panda_constants.TABLE_HALF_SIZE[1],
+                panda_constants.TABLE_CENTER[1] + panda_constants.TABLE_HALF_SIZE[1],
+            ),
         )
     if robot.name == g1_constants.ROBOT_NAME:
         leg_and_waist = g1_constants.LEFT_LEG_JOINTS + g1_constants.RIGHT_LEG_JOINTS + g1_constants.WAIST_JOINTS

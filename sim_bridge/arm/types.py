@@ -56,7 +56,7 @@ class ArmControllerConfig:
     lm_damping: float = 0.5
     joint_velocity_limit: float = 2.0
     collision_min_distance: float = 0.005
-    collision_detection_distance: float = 0.03
+    collision_detection_distance: float = 0.05
     settle_joint_speed: float = 0.02
     stall_time: float = 0.5
     default_linear_speed: float = 0.25

@@ -3,15 +3,23 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
+from types import MappingProxyType
 from typing import Final
 
 from sim_bridge.errors import InvalidGoalError
 
+MAX_STEP_FORWARD = 0.30  # [m]
+MAX_STEP_BACKWARD = 0.18  # [m]
+MAX_STEP_LATERAL = 0.18  # sideways displacement of the leading foot in one step [m]
+MAX_STEP_TURN = 0.45  # [rad]
+MAX_ADVANCE_RATE = 0.80  # step advance per second of swing, i.e. half the mean swing-foot speed [m/s]
+
 # name -> (min, max, description). A ROS node turns each entry into a parameter descriptor.
-PARAMETER_RANGES: Final[dict[str, tuple[float, float, str]]] = {
+PARAMETER_RANGES: Final[Mapping[str, tuple[float, float, str]]] = MappingProxyType({
     "step_duration": (0.25, 0.80, "single-support (swing) time of one step [s]"),
-    "double_support_duration": (0.05, 0.40, "double-support time between two steps [s]"),
+    "double_support_duration": (0.05, 0.30, "double-support time between two steps [s]"),
     "step_height": (0.02, 0.12, "swing foot apex height above the floor [m]"),
     "max_forward_speed": (0.0, 0.60, "largest forward speed a command is clamped to [m/s]"),
     "max_backward_speed": (0.0, 0.40, "largest backward speed a command is clamped to [m/s]"),
@@ -19,7 +27,7 @@ PARAMETER_RANGES: Final[dict[str, tuple[float, float, str]]] = {
     "max_yaw_rate": (0.0, 1.00, "largest turning rate a command is clamped to [rad/s]"),
     "max_acceleration": (0.05, 2.00, "rate at which the walking speed follows a command [m/s^2]"),
     "max_yaw_acceleration": (0.1, 4.00, "rate at which the turning rate follows a command [rad/s^2]"),
-}
+})
 
 
 @dataclass(frozen=True)
@@ -28,7 +36,7 @@ class GaitParameters:
 
     Attributes:
         step_duration: single-support (swing) time of one step [s], in [0.25, 0.80].
-        double_support_duration: double-support time between steps [s], in [0.05, 0.40].
+        double_support_duration: double-support time between steps [s], in [0.05, 0.30].
         step_height: swing foot apex above the floor [m], in [0.02, 0.12].
         max_forward_speed: forward speed limit [m/s], in [0, 0.60].
         max_backward_speed: backward speed limit (a magnitude) [m/s], in [0, 0.40].
@@ -55,10 +63,28 @@ class GaitParameters:
         for item in fields(self):
             value = getattr(self, item.name)
             low, high, description = PARAMETER_RANGES[item.name]
-            if not isinstance(value, (int, float)) or not math.isfinite(value) or not low <= value <= high:
+            is_number = isinstance(value, (int, float)) and not isinstance(value, bool)
+            if not is_number or not math.isfinite(value) or not low <= value <= high:
                 raise InvalidGoalError(
                     f"gait parameter {item.name}={value!r} is outside the allowed range [{low}, {high}] ({description})"
                 )
+
+    @property
+    def speed_limits(self) -> tuple[float, float, float, float]:
+        """Effective command limits (forward, backward, lateral [m/s], yaw [rad/s]).
+
+        The configured maxima, further reduced so that one step never exceeds what the legs reach
+        (0.30 m forward, 0.18 m backward, a 0.18 m sideways lead step, 0.45 rad of turn) and the
+        swing foot never has to travel faster than it can (0.8 m of advance per second of swing).
+        """
+        period = self.step_period
+        swing_reach = MAX_ADVANCE_RATE * self.step_duration
+        return (
+            min(self.max_forward_speed, min(MAX_STEP_FORWARD, swing_reach) / period),
+            min(self.max_backward_speed, min(MAX_STEP_BACKWARD, swing_reach) / period),
+            min(self.max_lateral_speed, MAX_STEP_LATERAL / (2.0 * period)),
+            min(self.max_yaw_rate, MAX_STEP_TURN / period),
+        )
 
     @property
     def step_period(self) -> float:

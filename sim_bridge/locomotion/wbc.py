@@ -37,6 +37,8 @@ ORIENTATION_KP, ORIENTATION_KD = 150.0, 25.0
 SWING_KP, SWING_KD = 400.0, 40.0
 POSTURE_KP, POSTURE_KD = 100.0, 20.0
 STANCE_KD = 10.0
+KNEE_MIN = 0.05  # the QP keeps the knees at least this bent [rad]
+KNEE_HORIZON = 0.05  # look-ahead of the knee limit [s]
 
 
 @dataclass(frozen=True)
@@ -80,6 +82,9 @@ class WholeBodyQP:
         self.servo_qpos = np.array([model.joint(j).qposadr[0] for j in servo_joints])
         self.servo_actuators = np.array([model.actuator(j).id for j in servo_joints])
         self.motor_qpos = np.array([model.joint(j).qposadr[0] for j in motor_joints])
+        knees = [j for j in names.LEFT_LEG_JOINTS + names.RIGHT_LEG_JOINTS if j.endswith("_knee_joint")]
+        self.knee_dofs = np.array([model.joint(j).dofadr[0] for j in knees])
+        self.knee_qpos = np.array([model.joint(j).qposadr[0] for j in knees])
         self.torque_limit = np.array([model.jnt_actfrcrange[model.joint(j).id] for j in motor_joints])
         self.servo_limit = np.array([model.jnt_actfrcrange[model.joint(j).id] for j in servo_joints])
         leg = set(names.LEFT_LEG_JOINTS + names.RIGHT_LEG_JOINTS)
@@ -100,6 +105,19 @@ class WholeBodyQP:
         self.last_status = 1
         base_dof = model.jnt_dofadr[model.body_jntadr[self.pelvis]]
         self.base_dofs = np.arange(base_dof, base_dof + 6)
+        # Constant rows: |f_x|, |f_y| <= mu f_z per corner; total force / mass; posture and knee selectors.
+        nf = FORCE_BLOCK
+        self._friction_rows = np.zeros((4 * 2 * CORNERS_PER_FOOT, self.n))
+        for c in range(2 * CORNERS_PER_FOOT):
+            for k, (axis, sign) in enumerate(((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0))):
+                self._friction_rows[4 * c + k, 3 * c + axis] = sign
+                self._friction_rows[4 * c + k, 3 * c + 2] = -FRICTION
+        self._com_rows = np.zeros((3, self.n))
+        self._com_rows[:, :nf] = np.tile(np.eye(3), (1, 2 * CORNERS_PER_FOOT)) / self.mass
+        self._posture_rows = np.zeros((len(self.motor_dofs), self.n))
+        self._posture_rows[np.arange(len(self.motor_dofs)), nf + self.motor_dofs] = 1.0
+        self._knee_rows = np.zeros((len(self.knee_dofs), self.n))
+        self._knee_rows[np.arange(len(self.knee_dofs)), nf + self.knee_dofs] = 1.0
 
     # ----- kinematics helpers -----------------------------------------------------------
     def corners(self, data: mujoco.MjData, side: Side) -> np.ndarray:
@@ -152,9 +170,7 @@ class WholeBodyQP:
             rhs.append(b)
             weights.append(np.broadcast_to(np.asarray(w, dtype=float), (a.shape[0],)))
 
-        com_rows = np.zeros((3, self.n))
-        com_rows[:, :nf] = np.tile(np.eye(3), (1, 2 * CORNERS_PER_FOOT)) / self.mass
-        add(com_rows, targets.com_acceleration + np.array([0.0, 0.0, GRAVITY]), W_COM)
+        add(self._com_rows, targets.com_acceleration + np.array([0.0, 0.0, GRAVITY]), W_COM)
 
         for body, weight in ((self.pelvis, W_PELVIS), (self.torso, W_TORSO)):
             jac, target = self._body_rot_task(model, data, body, targets.heading)
@@ -182,8 +198,7 @@ class WholeBodyQP:
             angular = SWING_KP * error + SWING_KD * (np.array([0.0, 0.0, swing.yaw_rate]) - jac[3:] @ qvel)
             add(a, np.concatenate([linear, angular]) - drift, W_SWING)
 
-        posture_rows = np.zeros((len(self.motor_dofs), self.n))
-        posture_rows[np.arange(len(self.motor_dofs)), nf + self.motor_dofs] = 1.0
+        posture_rows = self._posture_rows
         q = data.qpos[self.motor_qpos]
         qd = qvel[self.motor_dofs]
         add(posture_rows, POSTURE_KP * (targets.posture - q) - POSTURE_KD * qd, self.posture_weight)
@@ -211,11 +226,7 @@ class WholeBodyQP:
         eq_servo = np.hstack([-contact_jac[:, servo].T, mass_matrix[servo]])
         motor = self.motor_dofs
         torque_rows = np.hstack([-contact_jac[:, motor].T, mass_matrix[motor]])
-        friction_rows = np.zeros((4 * 2 * CORNERS_PER_FOOT, self.n))
-        for c in range(2 * CORNERS_PER_FOOT):
-            for k, (axis, sign) in enumerate(((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0))):
-                friction_rows[4 * c + k, 3 * c + axis] = sign
-                friction_rows[4 * c + k, 3 * c + 2] = -FRICTION
+        friction_rows = self._friction_rows
 
         upper_bounds = np.full(nf, 1e9)
         lower_bounds = np.full(nf, -1e9)
@@ -227,15 +238,18 @@ class WholeBodyQP:
                 upper_bounds[z] = load * corner_max
                 lower_bounds[z] = 0.0
         n_friction = friction_rows.shape[0]
+        knee_rows = self._knee_rows
+        knee_q = data.qpos[self.knee_qpos]
+        knee_min_acc = 2.0 * (KNEE_MIN - knee_q - qvel[self.knee_dofs] * KNEE_HORIZON) / KNEE_HORIZON**2
 
         def attempt(with_torque_limits: bool) -> tuple[np.ndarray, int]:
             blocks = [eq_base, eq_servo, friction_rows]
             upper = [-bias[base], servo_torque - bias[servo], np.zeros(n_friction)]
             lower = [-bias[base], servo_torque - bias[servo], np.full(n_friction, -1e9)]
             if with_torque_limits:
-                blocks.append(torque_rows)
-                upper.append(self.torque_limit[:, 1] - bias[motor])
-                lower.append(self.torque_limit[:, 0] - bias[motor])
+                blocks += [torque_rows, knee_rows]
+                upper += [self.torque_limit[:, 1] - bias[motor], np.full(len(knee_q), 1e9)]
+                lower += [self.torque_limit[:, 0] - bias[motor], knee_min_acc]
             a_con = np.vstack(blocks)
             b_up = np.concatenate([upper_bounds, *upper])
             b_lo = np.concatenate([lower_bounds, *lower])

@@ -1,0 +1,246 @@
+"""The physics walking controller: standing, walking, turning, live changes, validation, falls."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+
+import robot_models
+from robot_models import g1_constants as names
+from sim_bridge import InvalidGoalError, Simulation, Slot
+from sim_bridge.locomotion import PARAMETER_RANGES, GaitParameters, LocomotionMode, WalkingController
+from sim_bridge.locomotion.planner import Footstep, Side, ZmpSegment, clip_to_polygon, convex_hull, dcm_reference
+
+
+@pytest.fixture(scope="module")
+def g1_robot():
+    return robot_models.load("g1")
+
+
+@pytest.fixture
+def walker(g1_robot):
+    """A fresh G1 simulation with a walking controller installed."""
+    sim = Simulation(g1_robot)
+    controller = WalkingController(sim.model)
+    sim.set_controller(Slot.LOCOMOTION, controller)
+    yield sim, controller
+    sim.reset()  # restores the servos' gains on the shared model
+
+
+def _xy(sim: Simulation) -> np.ndarray:
+    return sim.data.body(names.ROOT_BODY).xpos[:2].copy()
+
+
+def _yaw(sim: Simulation) -> float:
+    mat = sim.data.body(names.ROOT_BODY).xmat
+    return math.atan2(mat[3], mat[0])
+
+
+def _run(sim: Simulation, controller: WalkingController, seconds: float) -> None:
+    """Step for ``seconds`` of sim time, failing as soon as the robot falls."""
+    for _ in range(round(seconds / sim.control_timestep)):
+        sim.step(1)
+        assert not controller.status().fallen, f"fell at t={sim.time:.2f} s: {controller.status().message}"
+
+
+def _run_until(sim: Simulation, controller: WalkingController, done: Callable[[], bool], deadline: float) -> None:
+    """Step until ``done()`` holds, failing on a fall or when ``deadline`` seconds of sim time pass."""
+    end = sim.time + deadline
+    while not done():
+        assert sim.time < end, f"condition not reached within {deadline} s of sim time"
+        _run(sim, controller, sim.control_timestep)
+
+
+def _stop_and_settle(sim: Simulation, controller: WalkingController, deadline: float = 4.0) -> None:
+    controller.set_velocity_command(0.0, 0.0, 0.0)
+    _run_until(sim, controller, lambda: not controller.active, deadline)
+    assert controller.status().mode is LocomotionMode.STANDING
+
+
+# ----- fast unit tests ---------------------------------------------------------------------
+def test_parameter_ranges_cover_every_field_and_hold_the_defaults():
+    defaults = GaitParameters()
+    assert set(PARAMETER_RANGES) == set(vars(defaults))
+    for name, (low, high, description) in PARAMETER_RANGES.items():
+        assert low <= getattr(defaults, name) <= high
+        assert description
+
+
+@pytest.mark.parametrize(
+    "field, value", [("step_duration", 0.1), ("double_support_duration", 1.0), ("max_forward_speed", float("nan")),
+                     ("step_height", -0.01)]
+)
+def test_invalid_gait_parameters_are_refused_with_the_allowed_range(field, value):
+    low, high, _ = PARAMETER_RANGES[field]
+    with pytest.raises(InvalidGoalError, match=rf"{field}.*\[{low}, {high}\]"):
+        GaitParameters(**{field: value})
+
+
+def test_set_gait_parameters_refuses_other_types_and_applies_new_limits(g1_robot):
+    controller = WalkingController(g1_robot.model)
+    with pytest.raises(InvalidGoalError, match="GaitParameters"):
+        controller.set_gait_parameters({"step_duration": 0.4})  # type: ignore[arg-type]
+    controller.set_velocity_command(0.5, 0.0, 0.0)
+    controller.set_gait_parameters(GaitParameters(max_forward_speed=0.3))
+    assert controller.status().commanded.vx == pytest.approx(0.3)
+
+
+def test_velocity_command_is_clamped_and_non_finite_values_are_refused(g1_robot):
+    params = GaitParameters()
+    controller = WalkingController(g1_robot.model)
+    controller.set_velocity_command(5.0, -5.0, 5.0)
+    commanded = controller.status().commanded
+    assert (commanded.vx, commanded.vy, commanded.wz) == pytest.approx(
+        (params.max_forward_speed, -params.max_lateral_speed, params.max_yaw_rate)
+    )
+    controller.set_velocity_command(-5.0, 0.0, -5.0)
+    assert controller.status().commanded.vx == pytest.approx(-params.max_backward_speed)
+    with pytest.raises(InvalidGoalError):
+        controller.set_velocity_command(float("inf"), 0.0, 0.0)
+
+
+def test_dcm_reference_is_the_zmp_when_it_stays_put_and_leads_a_moving_zmp():
+    still = dcm_reference([ZmpSegment(1.0, np.array([0.1, 0.2]), np.array([0.1, 0.2]))], 0.3, 3.8)
+    assert still.dcm == pytest.approx([0.1, 0.2])
+    moving = dcm_reference(
+        [ZmpSegment(0.5, np.zeros(2), np.array([0.1, 0.0])), ZmpSegment(2.0, np.array([0.1, 0.0]), np.array([0.1, 0.0]))],
+        0.0, 3.8,
+    )
+    assert moving.zmp == pytest.approx([0.0, 0.0])
+    assert 0.0 < moving.dcm[0] < 0.1 and moving.dcm[1] == pytest.approx(0.0)
+
+
+def test_cop_clipping_keeps_inside_points_and_projects_outside_ones():
+    hull = convex_hull(np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5]], dtype=float))
+    assert len(hull) == 4
+    assert clip_to_polygon(np.array([0.3, 0.4]), hull) == pytest.approx([0.3, 0.4])
+    assert clip_to_polygon(np.array([2.0, 0.5]), hull) == pytest.approx([1.0, 0.5])
+    assert Footstep(Side.LEFT, np.zeros(2), 0.0).side.other is Side.RIGHT
+
+
+# ----- closed-loop tests ----------------------------------------------------------------------
+def test_stands_still_with_a_zero_command(walker):
+    sim, controller = walker
+    start = _xy(sim)
+    controller.set_velocity_command(0.0, 0.0, 0.0)
+    _run(sim, controller, 5.0)
+    assert np.linalg.norm(_xy(sim) - start) < 0.02
+    assert controller.status().mode is LocomotionMode.STANDING
+    assert not controller.active
+
+
+@pytest.mark.slow
+def test_walks_forward_two_metres_at_the_commanded_pace(walker):
+    sim, controller = walker
+    start = _xy(sim)
+    controller.set_velocity_command(0.3, 0.0, 0.0)
+    _run(sim, controller, 3.0)
+    assert controller.status().mode is LocomotionMode.WALKING
+    window_start, t0 = _xy(sim), sim.time
+    _run_until(sim, controller, lambda: _xy(sim)[0] - start[0] >= 2.0, deadline=10.0)
+    pace = (_xy(sim)[0] - window_start[0]) / (sim.time - t0)
+    assert pace == pytest.approx(0.3, abs=0.04)
+    _stop_and_settle(sim, controller)
+    travelled = _xy(sim) - start
+    assert 2.0 <= travelled[0] < 2.4
+    assert abs(travelled[1]) < 0.10
+    assert abs(math.degrees(_yaw(sim))) < 5.0
+    assert controller.status().steps_taken >= 10
+
+
+@pytest.mark.slow
+def test_walks_backward_half_a_metre_and_stops(walker):
+    sim, controller = walker
+    start = _xy(sim)
+    controller.set_velocity_command(-0.3, 0.0, 0.0)
+    _run_until(sim, controller, lambda: _xy(sim)[0] - start[0] <= -0.5, deadline=5.0)
+    _stop_and_settle(sim, controller)
+    travelled = _xy(sim) - start
+    assert -0.8 < travelled[0] <= -0.5
+    assert abs(travelled[1]) < 0.08
+
+
+@pytest.mark.slow
+def test_walks_sideways(walker):
+    sim, controller = walker
+    start = _xy(sim)
+    controller.set_velocity_command(0.0, 0.15, 0.0)
+    _run(sim, controller, 4.0)
+    _stop_and_settle(sim, controller)
+    travelled = _xy(sim) - start
+    assert 0.35 < travelled[1] < 0.7
+    assert abs(travelled[0]) < 0.08
+    assert abs(math.degrees(_yaw(sim))) < 5.0
+
+
+@pytest.mark.slow
+def test_turns_in_place_by_ninety_degrees(walker):
+    sim, controller = walker
+    start = _xy(sim)
+    controller.set_velocity_command(0.0, 0.0, 0.5)
+    _run_until(sim, controller, lambda: _yaw(sim) >= math.radians(85.0), deadline=8.0)
+    _stop_and_settle(sim, controller)
+    assert 85.0 <= math.degrees(_yaw(sim)) <= 105.0
+    assert np.linalg.norm(_xy(sim) - start) < 0.15
+
+
+@pytest.mark.slow
+def test_live_speed_change_changes_the_measured_pace(walker):
+    sim, controller = walker
+
+    def pace(seconds: float) -> float:
+        x0, t0 = _xy(sim)[0], sim.time
+        _run(sim, controller, seconds)
+        return (_xy(sim)[0] - x0) / (sim.time - t0)
+
+    controller.set_velocity_command(0.2, 0.0, 0.0)
+    _run(sim, controller, 3.0)
+    slow = pace(2.7)
+    controller.set_velocity_command(0.4, 0.0, 0.0)
+    _run(sim, controller, 2.0)
+    fast = pace(2.7)
+    assert slow == pytest.approx(0.2, abs=0.04)
+    assert fast == pytest.approx(0.4, abs=0.05)
+    assert controller.status().measured.vx == pytest.approx(0.4, abs=0.1)
+
+
+@pytest.mark.slow
+def test_a_fall_is_detected_and_a_reset_lets_it_stand_and_walk_again(walker):
+    sim, controller = walker
+    controller.set_velocity_command(0.3, 0.0, 0.0)
+    _run(sim, controller, 2.0)
+    pelvis = sim.model.body(names.ROOT_BODY).id
+    sim.data.xfrc_applied[pelvis, 1] = 400.0  # a shove no controller can absorb
+    end = sim.time + 3.0
+    while not controller.status().fallen and sim.time < end:
+        sim.step(1)
+    status = controller.status()
+    assert status.fallen and status.mode is LocomotionMode.FALLEN and "reset" in status.message
+    assert not controller.active
+    sim.data.xfrc_applied[pelvis] = 0.0
+
+    sim.reset()
+    assert controller.status().mode is LocomotionMode.STANDING
+    start = _xy(sim)
+    _run(sim, controller, 3.0)
+    assert np.linalg.norm(_xy(sim) - start) < 0.02
+    controller.set_velocity_command(0.3, 0.0, 0.0)
+    _run(sim, controller, 3.0)
+    assert _xy(sim)[0] - start[0] > 0.3
+
+
+@pytest.mark.slow
+def test_release_gives_the_legs_back_to_the_position_servos(walker):
+    sim, controller = walker
+    knee = sim.model.actuator(names.LEFT_LEG_JOINTS[3]).id
+    servo_gain = float(sim.model.actuator_gainprm[knee, 0])
+    controller.set_velocity_command(0.2, 0.0, 0.0)
+    _run(sim, controller, 1.0)
+    assert controller.active and sim.model.actuator_gainprm[knee, 0] == 1.0  # torque mode while walking
+    controller.release(sim.model, sim.data)
+    assert not controller.active
+    assert sim.model.actuator_gainprm[knee, 0] == servo_gain
+    assert controller.status().mode is LocomotionMode.STANDING
