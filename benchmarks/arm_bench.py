@@ -74,6 +74,40 @@ def bench_reach(count: int, rng: np.random.Generator) -> None:
     print(f"  wall/sim time: {wall:.2f} s / {simulated:.2f} s = {wall / simulated:.3f}")
 
 
+def bench_g1_reach(count: int, rng: np.random.Generator) -> None:
+    robot = robot_models.load("g1")
+    sim = Simulation(robot)
+    arm = ArmController(robot)
+    sim.set_controller(Slot.ARM, arm)
+    sim.step(125)
+    home = arm.status("right_arm").tool_pose
+    settled, errors, tilts = 0, [], []
+    wall_start, sim_start = time.perf_counter(), sim.time
+    done = 0
+    while done < count:
+        target = Pose(home.position + rng.uniform([0.0, -0.1, 0.0], [0.15, 0.1, 0.2]), home.orientation_wxyz)
+        if not solve_ik(arm.kinematics, sim.data, "right_arm", target, False).success:
+            continue
+        arm.set_target("right_arm", target, False, 0.15, 0.5)
+        started = sim.time
+        while sim.time - started < SETTLE_TIMEOUT_S and not arm.status("right_arm").settled:
+            sim.step(1)
+        status = arm.status("right_arm")
+        settled += int(status.settled)
+        errors.append(status.position_error)
+        rot = np.empty(9)
+        mujoco.mju_quat2Mat(rot, sim.base_state().pose.orientation_wxyz)
+        tilts.append(math.degrees(math.acos(min(1.0, rot[8]))))
+        done += 1
+    ik = np.array(arm.take_ik_timings()) * 1000.0
+    wall, simulated = time.perf_counter() - wall_start, sim.time - sim_start
+    print(f"G1 right arm over {count} random reachable poses (0.15 m/s), legs on their PD servos:")
+    print(f"  settled {settled}/{count}; position error mean {np.mean(errors) * 1000:.3f} mm, max {np.max(errors) * 1000:.3f} mm; "
+          f"pelvis tilt at settle max {np.max(tilts):.2f} deg; pelvis height {sim.base_state().pose.position[2]:.3f} m")
+    print(f"  IK per control step: p50 {np.percentile(ik, 50):.3f} ms, p95 {np.percentile(ik, 95):.3f} ms; "
+          f"wall/sim {wall:.2f} s / {simulated:.2f} s = {wall / simulated:.3f}")
+
+
 def _free_spot(rng: np.random.Generator, avoid: list[np.ndarray]) -> np.ndarray:
     while True:
         xy = np.array([rng.uniform(0.35, 0.65), rng.uniform(-0.35, 0.35)])
@@ -134,6 +168,7 @@ def main() -> None:
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)
     bench_reach(args.poses, rng)
+    bench_g1_reach(10, rng)
     bench_pick_place(args.picks, rng)
 
 

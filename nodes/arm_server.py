@@ -8,27 +8,22 @@ measured from the simulated state. One goal per arm: a new goal preempts the run
 
 from __future__ import annotations
 
-import itertools
 import math
 import os
 import sys
-import threading
-from dataclasses import dataclass, field
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import Point, PoseStamped
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import JointState
 from nav_msgs.msg import Odometry
 
 import robot_models
-from nodes.common import Latest, robot_of_sim, sim_time_overrides
+from nodes.common import ActiveGoal, GoalOwnership, GoalRejected, Latest, finish_goal, spin_server
 from nodes.conversions import duration_msg, pose_from_msg, pose_msg, seconds_of
 from nodes.parameters import ParameterSpec, declare
 from sim_bridge.arm import ArmKinematics
@@ -43,7 +38,6 @@ ACK_TIMEOUT_S = 10.0  # wall seconds to wait for /sim to confirm a command
 WORLD_FRAMES = ("", "world", "odom")
 
 PARAMETERS = (
-    ParameterSpec("robot", "", "robot of the running /sim (empty = ask /sim at start-up)", read_only=True),
     ParameterSpec("max_velocity_scaling", 0.5, "default fraction of the tool speed limits for MoveArm", 0.01, 1.0),
     ParameterSpec("max_linear_speed", 0.5, "tool speed at velocity scaling 1 [m/s]", 0.05, 2.0),
     ParameterSpec("max_angular_speed", 1.5, "tool angular speed at velocity scaling 1 [rad/s]", 0.1, 6.0),
@@ -67,30 +61,16 @@ PICK_PLACE_CODES = {
 }
 
 
-class GoalRejected(Exception):
-    """A goal that can never be executed; the message says why and what is allowed."""
-
-
-@dataclass
-class _ActiveGoal:
-    """Bookkeeping of the goal that owns an arm."""
-
-    seq: int
-    preempted: threading.Event = field(default_factory=threading.Event)
-
-
 class ArmServer(Node):
     """Serves ``/move_arm``, ``/pick_place`` and ``/arm/compute_ik`` for the robot of ``/sim``."""
 
     def __init__(self, robot: str, **kwargs) -> None:
         super().__init__(NODE_NAME, **kwargs)
-        declare(self, PARAMETERS)
+        declare(self, (ParameterSpec("robot", robot, "robot whose arms are served", read_only=True), *PARAMETERS))
         self.robot = robot_models.load(robot)
         self.kinematics = ArmKinematics(self.robot)
         self.arms = tuple(self.kinematics.arms)
-        self._seq = itertools.count(1 + (os.getpid() % 1000) * 100_000)
-        self._owners: dict[str, _ActiveGoal] = {}
-        self._owners_lock = threading.Lock()
+        self._ownership = GoalOwnership(first_seq=1 + (os.getpid() % 1000) * 100_000)
         self._arm_state: Latest[ArmState] = Latest(key=lambda msg: msg.arm)
         self._objects: Latest[ObjectStates] = Latest()
         self._joints: Latest[JointState] = Latest()
@@ -224,20 +204,6 @@ class ArmServer(Node):
     def _start(self, goal_handle: ServerGoalHandle) -> None:
         goal_handle.execute()
 
-    def _claim(self, arm: str) -> _ActiveGoal:
-        with self._owners_lock:
-            previous = self._owners.get(arm)
-            if previous is not None:
-                previous.preempted.set()
-            owner = _ActiveGoal(seq=next(self._seq) & 0xFFFFFFFF)
-            self._owners[arm] = owner
-            return owner
-
-    def _release(self, arm: str, owner: _ActiveGoal) -> None:
-        with self._owners_lock:
-            if self._owners.get(arm) is owner:
-                del self._owners[arm]
-
     def _send(self, command: ArmCommand) -> None:
         command.header.stamp = self.get_clock().now().to_msg()
         self._command_pub.publish(command)
@@ -267,7 +233,7 @@ class ArmServer(Node):
         scaling = goal.max_velocity_scaling or float(self._param("max_velocity_scaling"))
         timeout = goal.timeout or float(self._param("move_timeout"))
         position_only = goal.orientation_tolerance == 0.0
-        owner = self._claim(arm)
+        owner = self._ownership.claim(arm)
         command = ArmCommand(arm=arm, goal_seq=owner.seq, mode=ArmCommand.TRACK, position_only=position_only,
                              max_linear_speed=scaling * float(self._param("max_linear_speed")),
                              max_angular_speed=scaling * float(self._param("max_angular_speed")), gripper_width=-1.0)
@@ -276,9 +242,9 @@ class ArmServer(Node):
         try:
             return self._supervise_move(goal_handle, goal, arm, owner, target, timeout, result)
         finally:
-            self._release(arm, owner)
+            self._ownership.release(arm, owner)
 
-    def _supervise_move(self, goal_handle: ServerGoalHandle, goal: MoveArm.Goal, arm: str, owner: _ActiveGoal,
+    def _supervise_move(self, goal_handle: ServerGoalHandle, goal: MoveArm.Goal, arm: str, owner: ActiveGoal,
                         target: Pose, timeout: float, result: MoveArm.Result) -> MoveArm.Result:
         first = self._wait_state(arm, owner.seq, ACK_TIMEOUT_S)
         if first is None:
@@ -339,20 +305,7 @@ class ArmServer(Node):
 
     def _finish(self, goal_handle: ServerGoalHandle, result, code: int, message: str,
                 abort: bool = False, cancel: bool = False):
-        result.error_code = code
-        result.error_msg = message
-        if cancel:
-            goal_handle.canceled()
-        elif abort:
-            goal_handle.abort()
-        else:
-            goal_handle.succeed()
-        text = f"goal {bytes(goal_handle.goal_id.uuid).hex()[:8]} ended: {message}"
-        if code == 0 or cancel:
-            self.get_logger().info(text)
-        else:
-            self.get_logger().warning(text)
-        return result
+        return finish_goal(self, goal_handle, result, code, message, abort=abort, cancel=cancel)
 
     # ----- PickPlace ---------------------------------------------------------------------
     def _execute_pick(self, goal_handle: ServerGoalHandle) -> PickPlace.Result:
@@ -363,7 +316,7 @@ class ArmServer(Node):
         except GoalRejected as reason:
             return self._finish(goal_handle, result, PickPlace.Result.INVALID_GOAL, str(reason), abort=True)
         timeout = goal.timeout or float(self._param("pick_place_timeout"))
-        owner = self._claim(arm)
+        owner = self._ownership.claim(arm)
         command = ArmCommand(
             arm=arm, goal_seq=owner.seq, mode=ArmCommand.PICK_PLACE, object_id=name, place_position=place,
             gripper_force=goal.grasp_force or float(self._param("gripper_force")),
@@ -375,9 +328,9 @@ class ArmServer(Node):
         try:
             return self._supervise_pick(goal_handle, arm, owner, place, timeout, result)
         finally:
-            self._release(arm, owner)
+            self._ownership.release(arm, owner)
 
-    def _supervise_pick(self, goal_handle: ServerGoalHandle, arm: str, owner: _ActiveGoal, place: Point,
+    def _supervise_pick(self, goal_handle: ServerGoalHandle, arm: str, owner: ActiveGoal, place: Point,
                         timeout: float, result: PickPlace.Result) -> PickPlace.Result:
         state = self._wait_state(arm, owner.seq, ACK_TIMEOUT_S)
         if state is None:
@@ -386,6 +339,7 @@ class ArmServer(Node):
         start_time = seconds_of(state.header.stamp)
         feedback_period = 1.0 / float(self._param("feedback_rate"))
         last_feedback = -math.inf
+        last_stage = -1  # every stage change is reported, whatever the feedback rate
         while True:
             if owner.preempted.is_set():
                 self._fill_pick(result, state)
@@ -398,6 +352,13 @@ class ArmServer(Node):
                 self._fill_pick(result, state)
                 return self._finish(goal_handle, result, PickPlace.Result.SIM_FAULT, "the simulation was reset during the task", abort=True)
             now = seconds_of(state.header.stamp)
+            if state.done or now - last_feedback >= feedback_period or state.stage != last_stage:
+                last_feedback, last_stage = now, state.stage
+                feedback = PickPlace.Feedback(stage=state.stage, stage_name=state.stage_name,
+                                              stage_progress=state.stage_progress, percent_complete=state.percent_complete)
+                feedback.object_pose = _stamped(state.object_pose, state.header.stamp)
+                feedback.elapsed = duration_msg(now - start_time)
+                goal_handle.publish_feedback(feedback)
             if state.done:
                 self._fill_pick(result, state)
                 if state.success:
@@ -410,13 +371,6 @@ class ArmServer(Node):
                 self._fill_pick(result, state)
                 return self._finish(goal_handle, result, PickPlace.Result.TIMEOUT,
                                     f"timed out after {timeout:.1f} s of sim time in stage {state.stage_name}", abort=True)
-            if now - last_feedback >= feedback_period:
-                last_feedback = now
-                feedback = PickPlace.Feedback(stage=state.stage, stage_name=state.stage_name,
-                                              stage_progress=state.stage_progress, percent_complete=state.percent_complete)
-                feedback.object_pose = _stamped(state.object_pose, state.header.stamp)
-                feedback.elapsed = duration_msg(now - start_time)
-                goal_handle.publish_feedback(feedback)
             self._arm_state.wait_next(1.0)
             state = self._arm_state.get(arm) or state
 
@@ -488,29 +442,7 @@ def _compose(parent: Pose, child: Pose) -> Pose:
 
 def main(args: list[str] | None = None) -> int:
     """Console entry point: ``arm_server [--ros-args -p robot:=panda]``."""
-    argv = sys.argv if args is None else args
-    rclpy.init(args=argv)
-    probe = Node("arm_setup", parameter_overrides=sim_time_overrides(argv))
-    try:
-        declare(probe, PARAMETERS[:1])
-        robot = str(probe.get_parameter("robot").value) or robot_of_sim(probe)
-    except RuntimeError as error:
-        probe.get_logger().fatal(str(error))
-        return 2
-    finally:
-        probe.destroy_node()
-    node = ArmServer(robot, parameter_overrides=sim_time_overrides(argv))
-    executor = MultiThreadedExecutor(num_threads=4)
-    executor.add_node(node)
-    try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        executor.shutdown()
-        rclpy.try_shutdown()
-    return 0
+    return spin_server(lambda robot, overrides: ArmServer(robot, parameter_overrides=overrides), NODE_NAME, args)
 
 
 if __name__ == "__main__":

@@ -1,70 +1,74 @@
-"""All-in-one bringup: the sim node and every server that exists for the robot, in one process.
+"""All-in-one bringup: the sim node and every server that exists for the robot, as a launch file would.
 
-``bringup --robot g1|panda [--rtf X]``. Each node keeps its own name and interfaces, exactly as
-when run as separate executables; one multi-threaded executor spins them all.
+``bringup --robot g1|panda [--scene course] [--rtf X] [--paused]``. Each node runs in its own
+process (so the physics thread never waits for a server's Python), with the same names and
+interfaces as when started one by one. Ctrl-C (or SIGTERM) stops them all; if one node dies,
+the others are stopped too and bringup exits with an error.
 """
 
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
-
-import rclpy
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
-from rclpy.lifecycle import TransitionCallbackReturn
-from rclpy.parameter import Parameter
+import threading
 
 import robot_models
-from nodes.common import sim_time_overrides
-from nodes.sim_node import SimNode
+from sim_client.processes import ChildProcess
 
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog="bringup", description=__doc__.splitlines()[0])
     parser.add_argument("--robot", choices=robot_models.ROBOT_NAMES, default="g1")
+    parser.add_argument("--scene", default="", help="scene variant (g1: open, course); default: the robot's own")
     parser.add_argument("--rtf", type=float, default=1.0, help="real-time factor; 0 = as fast as possible")
     parser.add_argument("--paused", action="store_true", help="start with the physics paused")
     return parser.parse_args(argv)
 
 
-def server_nodes_for(robot: str, overrides: list[Parameter]) -> list:
-    """The action-server nodes that exist for ``robot`` (all on sim time)."""
-    from nodes.arm_server import ArmServer
-
-    nodes = [ArmServer(robot, parameter_overrides=overrides)]
-    return nodes
+def commands_for(options: argparse.Namespace, ros_args: list[str]) -> list[list[str]]:
+    """The executables to run, with their arguments."""
+    sim = ["sim_node", "--ros-args", "-p", f"robot:={options.robot}", "-p", f"real_time_factor:={float(options.rtf)}",
+           "-p", f"start_paused:={str(bool(options.paused)).lower()}"]
+    if options.scene:
+        sim += ["-p", f"scene:={options.scene}"]
+    servers = [["arm_server", "--ros-args", "-p", f"robot:={options.robot}"]]
+    if robot_models.load(options.robot).feet_sites:
+        servers.append(["locomotion_server", "--ros-args", "-p", f"robot:={options.robot}"])
+    extra = ros_args[1:] if ros_args else []
+    return [command + extra for command in [sim, *servers]]
 
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    ros_args = argv[argv.index("--ros-args"):] if "--ros-args" in argv else []
-    own_args = argv[: argv.index("--ros-args")] if "--ros-args" in argv else argv
-    options = parse_args(own_args)
-    rclpy.init(args=["bringup", *ros_args])
-    sim = SimNode(parameter_overrides=[
-        Parameter("robot", value=options.robot),
-        Parameter("real_time_factor", value=float(options.rtf)),
-        Parameter("start_paused", value=bool(options.paused)),
-    ])
-    if sim.trigger_configure() != TransitionCallbackReturn.SUCCESS:
-        sim.destroy()
-        rclpy.try_shutdown()
-        return 2
-    sim.trigger_activate()
-    nodes = [sim, *server_nodes_for(options.robot, sim_time_overrides(ros_args))]
-    executor = MultiThreadedExecutor(num_threads=4)
-    for node in nodes:
-        executor.add_node(node)
+    split = argv.index("--ros-args") if "--ros-args" in argv else len(argv)
+    options = parse_args(argv[:split])
     try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        robot_models.load(options.robot, options.scene or None)
+    except robot_models.RobotModelError as error:
+        print(f"bringup: {error}", file=sys.stderr)
+        return 2
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    children = []
+    try:
+        for command in commands_for(options, argv[split:]):
+            children.append(ChildProcess(command, inherit_output=True, own_group=False))
+        print(f"bringup: running {', '.join(c.args[0] for c in children)} for {options.robot}; Ctrl-C stops them",
+              flush=True)
+        while not stop.wait(0.2):
+            dead = [c for c in children if not c.alive()]
+            if dead:
+                print(f"bringup: {dead[0].args[0]} exited with {dead[0].process.returncode}; stopping the others",
+                      file=sys.stderr, flush=True)
+                return 1
+        return 0
     finally:
-        for node in reversed(nodes):
-            node.destroy() if hasattr(node, "destroy") else node.destroy_node()
-        executor.shutdown()
-        rclpy.try_shutdown()
-    return 0
+        for child in children:  # signal all first, then wait: they shut down in parallel
+            child.send_signal(signal.SIGINT)
+        for child in reversed(children):
+            child.stop(interrupt=False)
 
 
 if __name__ == "__main__":

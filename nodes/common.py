@@ -3,12 +3,17 @@ and a small latest-message box that execute callbacks can wait on with a deadlin
 
 from __future__ import annotations
 
+import itertools
+import signal
+import sys
 import threading
 from collections.abc import Callable
-from typing import Generic, TypeVar
+from dataclasses import dataclass, field
+from typing import Any, Generic, TypeVar
 
 import rclpy
 from rcl_interfaces.srv import GetParameters
+from rclpy.action.server import ServerGoalHandle
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -76,3 +81,91 @@ class Latest(Generic[MsgT]):
         with self._condition:
             version = self._version
             return self._condition.wait_for(lambda: self._version != version, timeout=timeout_s)
+
+
+class GoalRejected(Exception):
+    """A goal that can never be executed; the message says why and what is allowed."""
+
+
+@dataclass
+class ActiveGoal:
+    """Bookkeeping of the goal that owns a resource (an arm, the legs)."""
+
+    seq: int
+    preempted: threading.Event = field(default_factory=threading.Event)
+
+
+class GoalOwnership:
+    """One goal per resource: claiming a resource preempts the goal that held it."""
+
+    def __init__(self, first_seq: int = 1) -> None:
+        self._owners: dict[str, ActiveGoal] = {}
+        self._lock = threading.Lock()
+        self._seq = itertools.count(first_seq)
+
+    def claim(self, resource: str) -> ActiveGoal:
+        with self._lock:
+            previous = self._owners.get(resource)
+            if previous is not None:
+                previous.preempted.set()
+            owner = ActiveGoal(seq=next(self._seq) & 0xFFFFFFFF)
+            self._owners[resource] = owner
+            return owner
+
+    def release(self, resource: str, owner: ActiveGoal) -> None:
+        with self._lock:
+            if self._owners.get(resource) is owner:
+                del self._owners[resource]
+
+
+def finish_goal(node: Node, goal_handle: ServerGoalHandle, result: Any, code: int, message: str,
+                abort: bool = False, cancel: bool = False) -> Any:
+    """Set a result's ``error_code``/``error_msg``, end the goal in the right state, log it."""
+    result.error_code = code
+    result.error_msg = message
+    if cancel:
+        goal_handle.canceled()
+    elif abort:
+        goal_handle.abort()
+    else:
+        goal_handle.succeed()
+    text = f"goal {bytes(goal_handle.goal_id.uuid).hex()[:8]} ended: {message}"
+    if code == 0 or cancel:
+        node.get_logger().info(text)
+    else:
+        node.get_logger().warning(text)
+    return result
+
+
+def spin_server(node_factory: Callable[[str, list[Parameter]], Node], node_name: str, args: list[str] | None) -> int:
+    """``main`` of a server node: find the robot (parameter or /sim), build the node, spin it."""
+    from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+
+    from nodes.parameters import ParameterSpec, declare
+
+    argv = sys.argv if args is None else args
+    rclpy.init(args=argv)
+    overrides = sim_time_overrides(argv)
+    probe = Node(f"{node_name}_setup", parameter_overrides=overrides)
+    try:
+        declare(probe, (ParameterSpec("robot", "", "robot of the running /sim (empty = ask /sim)", read_only=True),))
+        robot = str(probe.get_parameter("robot").value) or robot_of_sim(probe)
+    except RuntimeError as error:
+        probe.get_logger().fatal(str(error))
+        rclpy.try_shutdown()
+        return 2
+    finally:
+        probe.destroy_node()
+    node = node_factory(robot, overrides)
+    executor = MultiThreadedExecutor(num_threads=4)
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not interrupt the clean-up
+        node.destroy_node()
+        executor.shutdown()
+        rclpy.try_shutdown()
+    return 0

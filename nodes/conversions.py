@@ -7,7 +7,9 @@ import math
 import numpy as np
 from builtin_interfaces.msg import Duration, Time
 from geometry_msgs.msg import Pose as PoseMsg
+from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 
+from sim_bridge.navigation import OccupancyGrid
 from sim_bridge.state import Pose
 
 NANOSECONDS_PER_SECOND = 1_000_000_000
@@ -68,3 +70,22 @@ def yaw_of(quat_wxyz: np.ndarray) -> float:
     """Heading [rad] of a quaternion (rotation about world z)."""
     w, x, y, z = (float(v) for v in quat_wxyz)
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def occupancy_grid_msg(grid: OccupancyGrid, frame_id: str = "world") -> OccupancyGridMsg:
+    """nav_msgs/OccupancyGrid (100 = occupied, 0 = free) of a core grid."""
+    msg = OccupancyGridMsg()
+    msg.header.frame_id = frame_id
+    msg.info.resolution = float(grid.resolution)
+    msg.info.width, msg.info.height = grid.width, grid.height
+    msg.info.origin.position.x, msg.info.origin.position.y = float(grid.origin_xy[0]), float(grid.origin_xy[1])
+    msg.info.origin.orientation.w = 1.0
+    msg.data = (grid.occupied.astype(np.int8) * 100).ravel().tolist()
+    return msg
+
+
+def grid_from_msg(msg: OccupancyGridMsg) -> OccupancyGrid:
+    """Core grid from nav_msgs/OccupancyGrid (unknown cells, -1, count as occupied)."""
+    data = np.asarray(msg.data, dtype=np.int16).reshape(msg.info.height, msg.info.width)
+    return OccupancyGrid((msg.info.origin.position.x, msg.info.origin.position.y), float(msg.info.resolution),
+                         (data != 0))

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import array
 import math
+import signal
 import sys
 import threading
 from dataclasses import dataclass
@@ -18,6 +19,7 @@ import numpy as np
 import rclpy
 from geometry_msgs.msg import Pose as PoseMsg
 from geometry_msgs.msg import TransformStamped, Twist
+from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
@@ -33,11 +35,12 @@ from std_srvs.srv import Trigger
 from tf2_msgs.msg import TFMessage
 
 import robot_models
-from nodes.conversions import set_pose, set_time
+from nodes.conversions import occupancy_grid_msg, set_pose, set_time
 from nodes.parameters import ParameterSpec, declare
 from nodes.plugins import InLoopPlugins
 from nodes.tf_builder import TransformSet, link_pairs
 from sim_bridge import Pacer, Simulation, SimulationFaultError, UnknownNameError
+from sim_bridge.navigation import grid_from_obstacles
 from sim_interfaces.msg import ObjectStates
 from sim_interfaces.srv import Reset, Step
 
@@ -47,6 +50,7 @@ MAX_STEP_REQUEST = 1_000_000
 
 PARAMETERS = (
     ParameterSpec("robot", "g1", f"robot scene to simulate, one of: {', '.join(robot_models.ROBOT_NAMES)}", read_only=True),
+    ParameterSpec("scene", "", "scene variant (g1: open, course; panda: table); empty = the robot's default", read_only=True),
     ParameterSpec("autostart", True, "configure and activate the lifecycle node on start", read_only=True),
     ParameterSpec("start_paused", False, "start with the physics paused (use ~/resume or ~/step)", read_only=True),
     ParameterSpec("real_time_factor", 1.0, "sim seconds per wall second; 0 = as fast as possible", 0.0, 1000.0),
@@ -135,8 +139,8 @@ class SimNode(LifecycleNode):
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
         name = str(self._param("robot"))
         try:
-            robot = robot_models.load(name)
-        except robot_models.UnknownRobotError as error:
+            robot = robot_models.load(name, str(self._param("scene")) or None)
+        except (robot_models.UnknownRobotError, robot_models.UnknownSceneError) as error:
             self.get_logger().error(f"cannot configure: {error}")
             return TransitionCallbackReturn.FAILURE
         self.sim = Simulation(robot)
@@ -176,6 +180,9 @@ class SimNode(LifecycleNode):
         self._base_tf_msg = TFMessage(transforms=[base_tf])
         self._object_tf = TransformSet(sim, [("world", name) for name in robot.objects])
         self._link_tf = TransformSet(sim, link_pairs(sim))
+        if robot.floating_base:
+            self._map_pub = self.create_publisher(OccupancyGridMsg, "/map", static_qos)
+            self._map_pub.publish(occupancy_grid_msg(grid_from_obstacles(robot.obstacles)))
         self._objects_msg = ObjectStates(names=list(robot.objects), poses=[PoseMsg() for _ in robot.objects])
         if robot.floating_base:
             static = TFMessage()
@@ -446,6 +453,7 @@ def main(args: list[str] | None = None) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not interrupt the clean-up
         node.destroy()
         executor.shutdown()
         if rclpy.ok():

@@ -4,21 +4,21 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from robot_models.spec import JointLimits, RobotModelError, RobotSpec, UnknownRobotError
+from robot_models.spec import JointLimits, Obstacle, RobotModelError, RobotSpec, UnknownRobotError, UnknownSceneError
 
-_REGISTRY: dict[str, Callable[[], RobotSpec]] = {}
+_REGISTRY: dict[str, Callable[..., RobotSpec]] = {}
 
 
-def _g1() -> RobotSpec:
+def _g1(scene: str | None) -> RobotSpec:
     from robot_models import g1
 
-    return g1.load()
+    return g1.load(scene) if scene else g1.load()
 
 
-def _panda() -> RobotSpec:
+def _panda(scene: str | None) -> RobotSpec:
     from robot_models import panda
 
-    return panda.load()
+    return panda.load(scene) if scene else panda.load()
 
 
 _REGISTRY["g1"] = _g1
@@ -27,17 +27,20 @@ _REGISTRY["panda"] = _panda
 ROBOT_NAMES: tuple[str, ...] = tuple(sorted(_REGISTRY))
 
 
-def load(name: str) -> RobotSpec:
-    """Build the named robot scene.
+def load(name: str, scene: str | None = None) -> RobotSpec:
+    """Build the named robot in one of its scenes (``None`` = the robot's default scene).
 
     Raises:
         UnknownRobotError: the name is not registered; the message lists the names that are.
+        UnknownSceneError: the robot has no such scene; the message lists its scenes.
     """
     try:
         factory = _REGISTRY[name]
     except KeyError:
         raise UnknownRobotError(f"unknown robot {name!r}; known robots: {', '.join(ROBOT_NAMES)}") from None
-    return factory()
+    return factory(scene)
 
 
-__all__ = ["JointLimits", "ROBOT_NAMES", "RobotModelError", "RobotSpec", "UnknownRobotError", "load"]
+__all__ = [
+    "JointLimits", "Obstacle", "ROBOT_NAMES", "RobotModelError", "RobotSpec", "UnknownRobotError", "UnknownSceneError", "load",
+]

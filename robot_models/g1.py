@@ -16,7 +16,14 @@ import mujoco
 import numpy as np
 
 from robot_models import g1_constants as names
-from robot_models.spec import RobotSpec, add_position_actuator, joint_limits_of, read_urdf
+from robot_models.spec import (
+    Obstacle,
+    RobotSpec,
+    UnknownSceneError,
+    add_position_actuator,
+    joint_limits_of,
+    read_urdf,
+)
 
 PHYSICS_TIMESTEP_S = 0.002
 CONTROL_DECIMATION = 2  # 250 Hz control
@@ -46,6 +53,15 @@ def _restore_floating_base(urdf: str) -> str:
         raise ValueError("G1 URDF layout changed: the commented floating-base block was not found")
     urdf = urdf.replace(opening, '<link name="world"></link>', 1)
     return urdf.replace("</joint> -->", "</joint>", 1)
+
+
+def _add_obstacles(spec: mujoco.MjSpec) -> tuple[Obstacle, ...]:
+    obstacles = []
+    for name, x, y, hx, hy, height in names.COURSE_OBSTACLES:
+        spec.worldbody.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX, size=[hx, hy, height / 2],
+                                pos=[x, y, height / 2], rgba=[0.8, 0.55, 0.2, 1.0], contype=1, conaffinity=1)
+        obstacles.append(Obstacle(name=name, center_xy=(x, y), half_size_xy=(hx, hy), height=height))
+    return tuple(obstacles)
 
 
 def build_spec() -> mujoco.MjSpec:
@@ -126,9 +142,19 @@ def _stand_qpos(model: mujoco.MjModel) -> np.ndarray:
     return qpos
 
 
-def load() -> RobotSpec:
-    """Build and compile the G1 scene."""
+def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
+    """Build and compile the G1 scene.
+
+    Args:
+        scene: ``"open"`` (empty floor) or ``"course"`` (static obstacles to walk around).
+
+    Raises:
+        UnknownSceneError: another scene name.
+    """
+    if scene not in names.SCENES:
+        raise UnknownSceneError(f"unknown scene {scene!r} for g1; scenes: {', '.join(names.SCENES)}")
     spec = build_spec()
+    obstacles = _add_obstacles(spec) if scene == "course" else ()
     model = spec.compile()
     qpos = _stand_qpos(model)
     ctrl = np.array([qpos[model.joint(j).qposadr[0]] for j in names.ALL_JOINTS])
@@ -155,4 +181,6 @@ def load() -> RobotSpec:
         default_keyframe=names.STAND_KEYFRAME,
         joint_limits=joint_limits_of(model, names.ALL_JOINTS),
         control_decimation=CONTROL_DECIMATION,
+        scene=scene,
+        obstacles=obstacles,
     )

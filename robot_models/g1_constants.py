@@ -60,3 +60,13 @@ SOLE_HALF_SIZE: Final = (0.100, 0.035, 0.005)
 SOLE_SITE_IN_FOOT: Final = (0.035, 0.0, -0.035)
 HAND_SITE_IN_WRIST: Final = (0.10, 0.0, 0.0)
 IMU_SITE_IN_PELVIS: Final = (0.04525, 0.0, -0.08339)
+
+# Scenes. "open": the robot on an empty floor. "course": a few static boxes to walk around,
+# as (name, centre x, centre y, half size x, half size y, height) [m].
+SCENES: Final = ("open", "course")
+DEFAULT_SCENE: Final = "open"
+COURSE_OBSTACLES: Final = (
+    ("obstacle_wall", 1.6, 0.0, 0.15, 0.9, 0.8),
+    ("obstacle_block", 3.2, 1.4, 0.4, 0.4, 0.6),
+    ("obstacle_pillar", 3.0, -1.6, 0.25, 0.25, 1.2),
+)

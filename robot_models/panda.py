@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 
 from robot_models import panda_constants as names
-from robot_models.spec import RobotSpec, add_position_actuator, joint_limits_of, read_urdf
+from robot_models.spec import RobotSpec, UnknownSceneError, add_position_actuator, joint_limits_of, read_urdf
 
 PHYSICS_TIMESTEP_S = 0.002
 CONTROL_DECIMATION = 2  # 250 Hz control
@@ -75,7 +75,8 @@ def build_spec() -> mujoco.MjSpec:
 
     arm_joints = {joint.name: joint for joint in spec.joints}
     for joint_name in names.ARM_JOINTS + names.FINGER_JOINTS:
-        arm_joints[joint_name].armature = 0.1 if joint_name in names.ARM_JOINTS else 0.0
+        # Finger armature 0.02 removes grip-width chatter while squeezing a box.
+        arm_joints[joint_name].armature = 0.1 if joint_name in names.ARM_JOINTS else 0.02
         arm_joints[joint_name].damping = [1.0 if joint_name in names.ARM_JOINTS else 0.0, 0.0, 0.0]
     for joint_name, kp in zip(names.ARM_JOINTS, ARM_KP):
         actuator = spec.add_actuator(name=joint_name, target=joint_name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
@@ -98,8 +99,14 @@ def _home_qpos(model: mujoco.MjModel) -> np.ndarray:
     return qpos
 
 
-def load() -> RobotSpec:
-    """Build and compile the Panda scene."""
+def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
+    """Build and compile the Panda scene (one scene: ``"table"``).
+
+    Raises:
+        UnknownSceneError: another scene name.
+    """
+    if scene not in names.SCENES:
+        raise UnknownSceneError(f"unknown scene {scene!r} for panda; scenes: {', '.join(names.SCENES)}")
     spec = build_spec()
     model = spec.compile()
     qpos = _home_qpos(model)
@@ -122,4 +129,5 @@ def load() -> RobotSpec:
         joint_limits=joint_limits_of(model, names.ALL_JOINTS),
         control_decimation=CONTROL_DECIMATION,
         objects=names.BOX_NAMES,
+        scene=scene,
     )

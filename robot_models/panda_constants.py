@@ -39,3 +39,6 @@ HOME_KEYFRAME: Final = "home"
 HOME_ARM_QPOS: Final = (0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785)
 FINGER_OPEN: Final = 0.04
 FINGER_CLOSED: Final = 0.0
+
+SCENES: Final = ("table",)
+DEFAULT_SCENE: Final = "table"

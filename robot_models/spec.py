@@ -16,6 +16,9 @@ class RobotModelError(Exception):
 class UnknownRobotError(RobotModelError, KeyError):
     """Raised by :func:`robot_models.load` for a name that is not registered."""
 
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else ""
+
 
 @dataclass(frozen=True)
 class JointLimits:
@@ -24,6 +27,32 @@ class JointLimits:
     lower: float
     upper: float
     effort: float
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A static box standing on the floor, for navigation.
+
+    Attributes:
+        name: geom name in the model.
+        center_xy: centre of its footprint in the world frame [m].
+        half_size_xy: half lengths of its footprint along its own axes [m].
+        height: [m].
+        yaw: rotation about world z [rad].
+    """
+
+    name: str
+    center_xy: tuple[float, float]
+    half_size_xy: tuple[float, float]
+    height: float
+    yaw: float = 0.0
+
+
+class UnknownSceneError(RobotModelError, KeyError):
+    """Raised by :func:`robot_models.load` for a scene the robot does not have."""
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else ""
 
 
 @dataclass(frozen=True)
@@ -46,6 +75,8 @@ class RobotSpec:
         joint_limits: joint name -> limits.
         control_decimation: physics steps per control step (control period = decimation * timestep).
         objects: names of free bodies a user may manipulate (boxes).
+        scene: name of the scene variant (e.g. ``"open"`` or ``"course"`` for the G1).
+        obstacles: static obstacles of the scene (for path planning).
     """
 
     name: str
@@ -63,6 +94,8 @@ class RobotSpec:
     joint_limits: dict[str, JointLimits]
     control_decimation: int
     objects: tuple[str, ...] = field(default=())
+    scene: str = "default"
+    obstacles: tuple[Obstacle, ...] = field(default=())
 
     @property
     def physics_timestep(self) -> float:

@@ -59,7 +59,10 @@ class Simulation:
         if slot == Slot.JOINT_SERVO:
             raise ValueError("the joint servo slot cannot be replaced")
         if controller is None:
-            self._controllers.pop(slot, None)
+            removed = self._controllers.pop(slot, None)
+            release = getattr(removed, "release", None)
+            if release is not None:  # e.g. the walker hands the legs back to their servos
+                release(self.model, self.data)
         else:
             controller.reset(self.model, self.data)
             self._controllers[slot] = controller

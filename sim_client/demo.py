@@ -1,71 +1,53 @@
-"""The main job: bring the simulator up headless, show what it publishes, exit cleanly.
+"""The main job (``make demo``): run the headline scenarios headless and show verdicts and artifacts.
 
-For each robot, a sim node runs in its own process; this process is a ROS client that listens
-to it over Fast DDS and prints what a user would check first.
+The G1 walks 2 m with feedback, walking_speed is changed mid-walk, it navigates around an
+obstacle; the Panda moves its arm through poses and picks and places a box. Each scenario brings
+its nodes up as processes (``bringup``), runs lock-stepped on sim time as fast as the machine
+allows, and leaves a folder with report.json, an MCAP recording, an MP4 video and plots.
+Scenarios whose action servers are not installed yet are skipped with a note.
 """
 
 from __future__ import annotations
 
+import argparse
+import importlib.util
 import os
+import pathlib
 import sys
-import time
 
-from nav_msgs.msg import Odometry
-from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64
-from tf2_msgs.msg import TFMessage
-
-from sim_client.processes import running
-from sim_client.session import RosSession
-from sim_interfaces.msg import ObjectStates
+HEADLINE = ("walk_2m", "walking_speed_change", "navigate_around_obstacle", "move_arm_sequence", "pick_place_box")
+SERVER_MODULES = {"walk": "nodes.locomotion_server", "navigate": "nodes.locomotion_server",
+                  "move_arm": "nodes.arm_server", "pick_place": "nodes.arm_server"}
 
 
-def _seconds(stamp) -> float:
-    return stamp.sec + stamp.nanosec * 1e-9
-
-
-def show_robot(session: RosSession, robot: str, watch_s: float) -> bool:
-    print(f"\n=== {robot}: starting `sim_node --ros-args -p robot:={robot}` (headless, real time) ===")
-    with running(["sim_node", "--ros-args", "-p", f"robot:={robot}"]) as node:
-        clock = session.record(Clock, "/clock", keep=10)
-        joints = session.record(JointState, "/joint_states", keep=5000)
-        odom = session.record(Odometry, "/odom", keep=10)
-        tf = session.record(TFMessage, "/tf", keep=500)
-        rtf = session.record(Float64, "/sim/real_time_factor", keep=10)
-        objects = session.record(ObjectStates, "/objects", keep=10)
-        session.wait_for(lambda: clock.count > 0 or not node.alive(), 60.0, f"the {robot} sim node")
-        if not node.alive():
-            print(node.output())
-            return False
-        start_count, wall0 = joints.count, time.monotonic()
-        sim0 = _seconds(clock.latest.clock)
-        session.wait_for(lambda: time.monotonic() - wall0 > watch_s and rtf.count > 0, watch_s + 10.0, "a measurement window")
-        sim1 = _seconds(clock.latest.clock)
-        js = joints.latest
-        pose = odom.latest.pose.pose
-        frames = sorted({t.child_frame_id for m in tf.messages() for t in m.transforms})
-        print(f"/clock          sim time {sim1:.2f} s, advanced {sim1 - sim0:.2f} s in {watch_s:.1f} s of wall time")
-        print(f"/joint_states   {len(js.name)} joints, {(joints.count - start_count) / (sim1 - sim0):.0f} msgs per sim second")
-        for name, position in list(zip(js.name, js.position))[:6]:
-            print(f"                {name:<28} {position:+.3f}")
-        print(f"/odom           base {odom.latest.child_frame_id} at x={pose.position.x:+.3f} y={pose.position.y:+.3f} z={pose.position.z:.3f} m")
-        print(f"/tf             {len(frames)} frames, e.g. {', '.join(frames[:5])}")
-        print(f"/sim/real_time_factor  {rtf.latest.data:.2f}")
-        if objects.count:
-            for name, p in zip(objects.latest.names, objects.latest.poses):
-                print(f"/objects        {name} at ({p.position.x:.3f}, {p.position.y:.3f}, {p.position.z:.3f}) m")
-    return True
-
-
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="sim-demo", description=__doc__.splitlines()[0])
+    parser.add_argument("scenarios", nargs="*", default=list(HEADLINE), help="scenario names (default: the headline ones)")
+    parser.add_argument("--out", type=pathlib.Path, default=pathlib.Path("demo_runs"))
+    parser.add_argument("--no-video", action="store_true", help="skip the MP4 rendering (the slowest artifact)")
+    options = parser.parse_args(argv)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    ok = True
-    with RosSession("sim_demo", use_sim_time=False) as session:
-        for robot in ("g1", "panda"):
-            ok = show_robot(session, robot, watch_s=3.0) and ok
-    print("\ndemo finished: " + ("every node came up and published" if ok else "a node failed (see above)"))
-    return 0 if ok else 1
+    os.environ.setdefault("MUJOCO_GL", "egl")
+
+    from sim_client.scenario import schema
+    from sim_client.scenario.runner import RunOptions, run
+
+    rows: list[tuple[str, str, str]] = []
+    for name in options.scenarios:
+        scenario = schema.load(schema.find(name))
+        missing = sorted({SERVER_MODULES[a] for a in scenario.actions if importlib.util.find_spec(SERVER_MODULES[a]) is None})
+        if missing:
+            rows.append((name, "SKIPPED", f"needs {', '.join(missing)} (not installed yet)"))
+            continue
+        print(f"\n{'=' * 78}\n{scenario.name}: {scenario.description}\n{'=' * 78}", flush=True)
+        result = run(scenario, RunOptions(record=True, video=not options.no_video, plots=True, out=options.out))
+        ratio = f"wall {result.wall_time:.0f} s / sim {result.sim_time:.0f} s"
+        rows.append((name, "PASSED" if result.passed else "FAILED", f"{ratio}  ->  {result.folder}"))
+    print(f"\n{'=' * 78}\ndemo summary")
+    for name, verdict, detail in rows:
+        print(f"  {verdict:<8} {name:<26} {detail}")
+    print("Open recording.mcap in Foxglove; video.mp4 and *.png are next to report.json.")
+    return 0 if all(v != "FAILED" for _, v, _ in rows) else 1
 
 
 if __name__ == "__main__":

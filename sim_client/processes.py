@@ -17,9 +17,14 @@ BIN = pathlib.Path(sys.executable).parent
 class ChildProcess:
     """An executable of this venv in its own process group, its output in a log file."""
 
-    def __init__(self, args: list[str], log_dir: pathlib.Path | None = None) -> None:
+    def __init__(self, args: list[str], log_dir: pathlib.Path | None = None, inherit_output: bool = False,
+                 own_group: bool = True) -> None:
         self.args = args
-        if log_dir is not None:
+        self._own_group = own_group
+        self._log = None
+        if inherit_output:  # output goes where the caller's goes (a launcher in a terminal)
+            self.log_path = pathlib.Path("/dev/null")
+        elif log_dir is not None:
             log_dir.mkdir(parents=True, exist_ok=True)
             self.log_path = log_dir / f"{args[0]}.log"
             self._log = open(self.log_path, "wb")  # noqa: SIM115 - closed in stop()
@@ -28,8 +33,8 @@ class ChildProcess:
             self.log_path = pathlib.Path(handle.name)
             self._log = handle
         self.process = subprocess.Popen(
-            [str(BIN / args[0]), *args[1:]], stdout=self._log, stderr=subprocess.STDOUT,
-            start_new_session=True, env=dict(os.environ),
+            [str(BIN / args[0]), *args[1:]], stdout=self._log, stderr=None if inherit_output else subprocess.STDOUT,
+            start_new_session=own_group, env=dict(os.environ),
         )
 
     def output(self) -> str:
@@ -38,22 +43,33 @@ class ChildProcess:
     def alive(self) -> bool:
         return self.process.poll() is None
 
-    def stop(self, timeout: float = 10.0) -> int:
-        """SIGINT the whole process group; SIGKILL what is left after ``timeout`` seconds."""
-        if self.alive():
-            try:
-                os.killpg(self.process.pid, signal.SIGINT)
-                self.process.wait(timeout=timeout)
-            except subprocess.TimeoutExpired:
-                os.killpg(self.process.pid, signal.SIGKILL)
-                self.process.wait(timeout=timeout)
-            except ProcessLookupError:
-                pass
+    def send_signal(self, sig: int) -> None:
         try:
-            os.killpg(self.process.pid, signal.SIGKILL)
+            if self._own_group:
+                os.killpg(self.process.pid, sig)
+            elif self.alive():
+                self.process.send_signal(sig)
         except ProcessLookupError:
             pass
-        self._log.close()
+
+    def stop(self, timeout: float = 10.0, interrupt: bool = True) -> int:
+        """SIGINT the process (its whole group when it has one); SIGKILL what is left after ``timeout`` s.
+
+        Args:
+            timeout: wall seconds to wait for a clean exit.
+            interrupt: send SIGINT first (False when the caller already did).
+        """
+        if self.alive():
+            if interrupt:
+                self.send_signal(signal.SIGINT)
+            try:
+                self.process.wait(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                self.send_signal(signal.SIGKILL)
+                self.process.wait(timeout=timeout)
+        self.send_signal(signal.SIGKILL)  # leftovers of the group, if any
+        if self._log is not None:
+            self._log.close()
         return int(self.process.returncode)
 
 

@@ -127,7 +127,8 @@ class _Run:
     grasp_offset_in_tool: np.ndarray = field(default_factory=lambda: np.zeros(3))
     grasp_yaw: float = 0.0
     place_tool_yaw: float = 0.0
-    width_history: list[float] = field(default_factory=list)
+    contact_history: list[bool] = field(default_factory=list)
+    no_contact_ticks: int = 0
     object_lift: float = 0.0
     done: bool = False
     success: bool = False
@@ -163,7 +164,8 @@ class PickPlace:
 
     SLIP_TOLERANCE = 0.010  # [m] drift of the object in the tool frame counted as a slip
     MIN_GRASP_TIME = 0.3  # [s]
-    GRASP_CONTACT_TICKS = 25  # control steps of continuous finger contact before lifting
+    GRASP_CONTACT_TICKS = 25  # window of control steps in which the fingers must touch the object 80 % of the time
+    LOST_CONTACT_TICKS = 10  # control steps without finger contact counted as a drop (contacts chatter briefly)
     PLACE_CLEARANCE = 0.002  # [m] height above the table the object is let go from
     RELEASE_CLEARANCE = 0.03  # [m] opening beyond the object size when releasing
 
@@ -284,7 +286,8 @@ class PickPlace:
         """Fail with SLIPPED or DROPPED when the object does not follow the gripper."""
         status = self.arm.status(run.goal.arm)
         assert status.gripper is not None
-        if run.goal.object_name not in status.gripper.contact_bodies:
+        run.no_contact_ticks = 0 if run.goal.object_name in status.gripper.contact_bodies else run.no_contact_ticks + 1
+        if run.no_contact_ticks >= self.LOST_CONTACT_TICKS:
             self._finish(run, PickPlaceFailure.OBJECT_DROPPED,
                          f"{run.stage.name}: the fingers lost contact with {run.goal.object_name!r} (dropped)")
             return False
@@ -325,19 +328,20 @@ class PickPlace:
         elif stage == PickPlaceStage.GRASP:
             if not run.stage_commanded:
                 self.arm.set_gripper(goal.arm, 0.0, goal.grip_force)
-                run.stage_commanded, run.width_history = True, []
+                run.stage_commanded, run.contact_history = True, []
                 return
             status = self.arm.status(goal.arm)
             assert status.gripper is not None
-            touching = goal.object_name in status.gripper.contact_bodies
-            run.width_history = run.width_history + [status.gripper.width] if touching else []
+            run.contact_history.append(goal.object_name in status.gripper.contact_bodies)
+            recent = run.contact_history[-self.GRASP_CONTACT_TICKS:]
+            held = len(recent) == self.GRASP_CONTACT_TICKS and sum(recent) >= 0.8 * self.GRASP_CONTACT_TICKS
             elapsed = self._elapsed(run, data)
             run.stage_progress = min(elapsed / self.MIN_GRASP_TIME, 1.0)
             if elapsed >= self.MIN_GRASP_TIME and status.gripper.width < 0.5 * size:
                 self._finish(run, PickPlaceFailure.GRASP_MISSED,
                              f"GRASP: the fingers closed to {status.gripper.width * 1000:.1f} mm without holding {goal.object_name!r}")
                 return
-            if elapsed >= self.MIN_GRASP_TIME and len(run.width_history) >= self.GRASP_CONTACT_TICKS:
+            if elapsed >= self.MIN_GRASP_TIME and held:
                 tool_pos, tool_mat = self._tool(data, run)
                 run.grasp_offset_in_tool = tool_mat.T @ (object_position - tool_pos)
                 self._next(run, data)

@@ -58,3 +58,13 @@ def test_panda_scene_has_grasp_settings_and_boxes():
 def test_unknown_robot_lists_known_names():
     with pytest.raises(robot_models.UnknownRobotError, match="g1, panda"):
         robot_models.load("atlas")
+
+
+def test_g1_course_scene_has_static_obstacles_and_unknown_scenes_are_refused():
+    course = robot_models.load("g1", "course")
+    assert course.scene == "course" and len(course.obstacles) >= 3
+    for obstacle in course.obstacles:
+        assert course.model.geom(obstacle.name).contype == 1
+    assert robot_models.load("g1").obstacles == ()
+    with pytest.raises(robot_models.UnknownSceneError, match="open, course"):
+        robot_models.load("g1", "moon")

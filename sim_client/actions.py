@@ -1,0 +1,424 @@
+"""Typed action clients and a parameter helper, built on :class:`sim_client.session.RosSession`.
+
+One small class per action of the project::
+
+    with RosSession("my_script") as session:
+        walk = WalkClient(session)
+        handle = walk.send(WalkClient.goal(distance=2.0, speed=0.3))
+        outcome = handle.wait(timeout=120.0)
+        print(outcome.status, outcome.error_name, handle.feedback.distance_walked)
+
+Every call blocks the calling thread: never use these from inside an executor callback.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Generic, TypeVar
+
+from action_msgs.msg import GoalStatus
+from geometry_msgs.msg import PoseStamped
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType
+from rclpy.action import ActionClient
+from rclpy.action.client import ClientGoalHandle
+from rclpy.parameter import Parameter, parameter_value_to_python
+
+from sim_client.session import RosSession, WaitTimeout
+from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, Walk
+
+GoalT = TypeVar("GoalT")
+FeedbackT = TypeVar("FeedbackT")
+ResultT = TypeVar("ResultT")
+
+STATUS_NAMES: dict[int, str] = {
+    GoalStatus.STATUS_UNKNOWN: "UNKNOWN",
+    GoalStatus.STATUS_ACCEPTED: "ACCEPTED",
+    GoalStatus.STATUS_EXECUTING: "EXECUTING",
+    GoalStatus.STATUS_CANCELING: "CANCELING",
+    GoalStatus.STATUS_SUCCEEDED: "SUCCEEDED",
+    GoalStatus.STATUS_CANCELED: "CANCELED",
+    GoalStatus.STATUS_ABORTED: "ABORTED",
+}
+REJECTED = "REJECTED"
+
+
+class ActionError(RuntimeError):
+    """The action server is not there, or did not answer in time."""
+
+
+def error_code_names(result_type: type) -> dict[int, str]:
+    """Result constants of an action (``{0: "SUCCESS", 1: "INVALID_GOAL", ...}``)."""
+    names: dict[int, str] = {}
+    for name in dir(result_type):
+        value = getattr(result_type, name)
+        if name.isupper() and isinstance(value, int) and not isinstance(value, bool):
+            names.setdefault(value, name)
+    return names
+
+
+@dataclass(frozen=True)
+class Outcome(Generic[ResultT]):
+    """How a goal ended.
+
+    Attributes:
+        status: ``SUCCEEDED``, ``ABORTED``, ``CANCELED``, ``REJECTED`` (goal refused) or
+            ``UNKNOWN``.
+        error_code: the result's ``error_code`` (None when the goal was rejected).
+        error_name: the constant naming ``error_code`` (``"SUCCESS"``, ``"INVALID_GOAL"``...);
+            ``"REJECTED"`` for a rejected goal.
+        error_msg: the result's ``error_msg``.
+        result: the result message (None when rejected).
+    """
+
+    status: str
+    error_code: int | None
+    error_name: str
+    error_msg: str
+    result: ResultT | None
+
+    @property
+    def succeeded(self) -> bool:
+        return self.status == "SUCCEEDED" and self.error_code == 0
+
+    def __str__(self) -> str:
+        text = f"{self.status} ({self.error_name})"
+        return f"{text}: {self.error_msg}" if self.error_msg else text
+
+
+@dataclass(frozen=True)
+class FeedbackSample(Generic[FeedbackT]):
+    """One feedback message with the client's sim time [s] when it arrived."""
+
+    sim_time: float
+    feedback: FeedbackT
+
+
+class GoalHandle(Generic[FeedbackT, ResultT]):
+    """A sent goal: its feedback (latest and history), cancel, and wait for the outcome."""
+
+    def __init__(self, client: _ActionClientBase, goal: Any) -> None:
+        self._client = client
+        self._session = client.session
+        self.goal = goal
+        self._lock = threading.Lock()
+        self._history: list[FeedbackSample[FeedbackT]] = []
+        self._handle: ClientGoalHandle | None = None
+        self._result_future = None
+        self._outcome: Outcome[ResultT] | None = None
+        self.sent_at: float = client.sim_now()
+
+    # Called from the executor thread: only append.
+    def _on_feedback(self, message: Any) -> None:
+        with self._lock:
+            self._history.append(FeedbackSample(self._client.sim_now(), message.feedback))
+
+    @property
+    def accepted(self) -> bool:
+        return self._handle is not None and bool(self._handle.accepted)
+
+    @property
+    def feedback(self) -> FeedbackT | None:
+        """The latest feedback message, or None before the first one."""
+        with self._lock:
+            return self._history[-1].feedback if self._history else None
+
+    @property
+    def feedback_history(self) -> list[FeedbackSample[FeedbackT]]:
+        with self._lock:
+            return list(self._history)
+
+    @property
+    def done(self) -> bool:
+        if self._outcome is not None:
+            return True
+        return self._result_future is None or self._result_future.done()
+
+    def cancel(self, timeout: float = 10.0) -> bool:
+        """Ask the server to cancel; True when the server accepted the cancel request."""
+        if not self.accepted or self.done:
+            return False
+        assert self._handle is not None
+        response = self._session.wait_future(self._handle.cancel_goal_async(), timeout, f"cancel of {self._client.name}")
+        return bool(response.goals_canceling)
+
+    def outcome(self) -> Outcome[ResultT] | None:
+        """The outcome if the goal has ended, else None (does not block)."""
+        if self._outcome is None and self.done:
+            self._outcome = self._make_outcome()
+        return self._outcome
+
+    def wait(self, timeout: float) -> Outcome[ResultT]:
+        """Block until the goal ends (``timeout`` wall seconds) and return its outcome.
+
+        Raises:
+            WaitTimeout: the goal did not end in time (it keeps running; cancel it if needed).
+        """
+        self._session.wait_for(lambda: self.done, timeout, f"the result of {self._client.name}")
+        outcome = self.outcome()
+        assert outcome is not None
+        return outcome
+
+    def _make_outcome(self) -> Outcome[ResultT]:
+        if not self.accepted:
+            return Outcome(REJECTED, None, REJECTED, f"goal rejected by {self._client.name}", None)
+        assert self._result_future is not None
+        response = self._result_future.result()
+        result = response.result
+        code = int(getattr(result, "error_code", 0))
+        return Outcome(
+            status=STATUS_NAMES.get(int(response.status), str(response.status)),
+            error_code=code,
+            error_name=self._client.error_names.get(code, str(code)),
+            error_msg=str(getattr(result, "error_msg", "")),
+            result=result,
+        )
+
+
+class _ActionClientBase(Generic[GoalT, FeedbackT, ResultT]):
+    """One action client on a session. Subclasses set ``action_type`` and ``default_name``."""
+
+    action_type: ClassVar[Any]
+    default_name: ClassVar[str]
+
+    def __init__(self, session: RosSession, name: str | None = None) -> None:
+        self.session = session
+        self.name = name or self.default_name
+        self._client = ActionClient(session.node, self.action_type, self.name)
+        self.error_names = error_code_names(self.action_type.Result)
+
+    def sim_now(self) -> float:
+        """The session's clock [s] (sim time when the session uses sim time)."""
+        return self.session.node.get_clock().now().nanoseconds * 1e-9
+
+    def wait_for_server(self, timeout: float = 30.0) -> None:
+        try:
+            self.session.wait_for(self._client.server_is_ready, timeout, f"action server {self.name}")
+        except WaitTimeout as error:
+            raise ActionError(f"{error}; is the node that serves {self.name} running?") from None
+
+    def server_ready(self) -> bool:
+        return bool(self._client.server_is_ready())
+
+    def send(self, goal: GoalT, timeout: float = 30.0) -> GoalHandle[FeedbackT, ResultT]:
+        """Send a goal and wait (``timeout`` wall seconds) for it to be accepted or rejected.
+
+        A rejected goal gives a handle whose ``wait()`` returns an ``Outcome`` with status
+        ``REJECTED`` at once.
+        """
+        self.wait_for_server(timeout)
+        handle: GoalHandle[FeedbackT, ResultT] = GoalHandle(self, goal)
+        future = self._client.send_goal_async(goal, feedback_callback=handle._on_feedback)
+        goal_handle = self.session.wait_future(future, timeout, f"acceptance of the {self.name} goal")
+        handle._handle = goal_handle
+        if goal_handle.accepted:
+            handle._result_future = goal_handle.get_result_async()
+        return handle
+
+    def destroy(self) -> None:
+        self._client.destroy()
+
+
+def _pose(x: float, y: float, z: float, roll: float = 0.0, pitch: float = 0.0, yaw: float = 0.0, frame: str = "world") -> PoseStamped:
+    """A PoseStamped from a position [m] and roll/pitch/yaw [rad] (extrinsic x-y-z)."""
+    pose = PoseStamped()
+    pose.header.frame_id = frame
+    pose.pose.position.x, pose.pose.position.y, pose.pose.position.z = float(x), float(y), float(z)
+    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+    q = pose.pose.orientation
+    q.w = cr * cp * cy + sr * sp * sy
+    q.x = sr * cp * cy - cr * sp * sy
+    q.y = cr * sp * cy + sr * cp * sy
+    q.z = cr * cp * sy - sr * sp * cy
+    return pose
+
+
+class MoveArmClient(_ActionClientBase[MoveArm.Goal, MoveArm.Feedback, MoveArm.Result]):
+    """``/move_arm`` (served by ``/arm``)."""
+
+    action_type = MoveArm
+    default_name = "/move_arm"
+
+    @staticmethod
+    def goal(
+        x: float, y: float, z: float, rpy: tuple[float, float, float] | None = None, arm: str = "",
+        position_tolerance: float = 0.005, orientation_tolerance: float = 0.0,
+        max_velocity_scaling: float = 0.0, timeout: float = 0.0, frame: str = "world",
+    ) -> MoveArm.Goal:
+        """A MoveArm goal: tool position [m] in ``frame``; ``rpy`` [rad] or None for position only."""
+        goal = MoveArm.Goal()
+        goal.target = _pose(x, y, z, *(rpy or (0.0, 0.0, 0.0)), frame=frame)
+        if rpy is None:
+            goal.target.pose.orientation.w, goal.target.pose.orientation.x = 1.0, 0.0
+            goal.target.pose.orientation.y = goal.target.pose.orientation.z = 0.0
+        goal.end_effector = arm
+        goal.position_tolerance = float(position_tolerance)
+        goal.orientation_tolerance = float(orientation_tolerance if rpy is not None else 0.0)
+        goal.max_velocity_scaling = float(max_velocity_scaling)
+        goal.timeout = float(timeout)
+        return goal
+
+
+class PickPlaceClient(_ActionClientBase[PickPlace.Goal, PickPlace.Feedback, PickPlace.Result]):
+    """``/pick_place`` (served by ``/arm``)."""
+
+    action_type = PickPlace
+    default_name = "/pick_place"
+
+    @staticmethod
+    def goal(object_id: str, place: tuple[float, float, float], arm: str = "", timeout: float = 0.0) -> PickPlace.Goal:
+        """Pick ``object_id`` and put its centre at ``place`` [m, world]; z <= 0 = on the table."""
+        goal = PickPlace.Goal()
+        goal.object_id = object_id
+        goal.place_pose = _pose(*place)
+        goal.end_effector = arm
+        goal.timeout = float(timeout)
+        return goal
+
+
+class WalkClient(_ActionClientBase[Walk.Goal, Walk.Feedback, Walk.Result]):
+    """``/walk`` (served by ``/locomotion``)."""
+
+    action_type = Walk
+    default_name = "/walk"
+
+    @staticmethod
+    def goal(distance: float, speed: float = 0.0, timeout: float = 0.0) -> Walk.Goal:
+        """Walk ``distance`` [m] (signed) at ``speed`` [m/s] (0 = the walking_speed parameter)."""
+        return Walk.Goal(distance=float(distance), speed=float(speed), timeout=float(timeout))
+
+
+class NavigateClient(_ActionClientBase[NavigateToPose.Goal, NavigateToPose.Feedback, NavigateToPose.Result]):
+    """``/navigate_to_pose`` (served by ``/locomotion``)."""
+
+    action_type = NavigateToPose
+    default_name = "/navigate_to_pose"
+
+    @staticmethod
+    def goal(x: float, y: float, yaw: float = 0.0, frame: str = "odom") -> NavigateToPose.Goal:
+        """Go to (x, y) [m] facing ``yaw`` [rad] in ``frame``."""
+        return NavigateToPose.Goal(pose=_pose(x, y, 0.0, yaw=yaw, frame=frame))
+
+
+ACTION_CLIENTS: dict[str, type[_ActionClientBase]] = {
+    "move_arm": MoveArmClient,
+    "pick_place": PickPlaceClient,
+    "walk": WalkClient,
+    "navigate": NavigateClient,
+}
+
+# ----- parameters ----------------------------------------------------------------------------
+_TYPE_NAMES = {
+    ParameterType.PARAMETER_NOT_SET: "not set",
+    ParameterType.PARAMETER_BOOL: "bool",
+    ParameterType.PARAMETER_INTEGER: "integer",
+    ParameterType.PARAMETER_DOUBLE: "double",
+    ParameterType.PARAMETER_STRING: "string",
+    ParameterType.PARAMETER_BYTE_ARRAY: "byte array",
+    ParameterType.PARAMETER_BOOL_ARRAY: "bool array",
+    ParameterType.PARAMETER_INTEGER_ARRAY: "integer array",
+    ParameterType.PARAMETER_DOUBLE_ARRAY: "double array",
+    ParameterType.PARAMETER_STRING_ARRAY: "string array",
+}
+
+
+@dataclass(frozen=True)
+class ParameterInfo:
+    """What ``ros2 param describe`` shows about one parameter."""
+
+    name: str
+    type: str
+    description: str
+    read_only: bool
+    constraints: str
+    range: tuple[float, float] | None = field(default=None)
+
+    def __str__(self) -> str:
+        lines = [f"Parameter name: {self.name}", f"  Type: {self.type}"]
+        if self.description:
+            lines.append(f"  Description: {self.description}")
+        if self.range is not None:
+            lines.append(f"  Range: {self.range[0]} .. {self.range[1]}")
+        if self.constraints:
+            lines.append(f"  Constraints: {self.constraints}")
+        if self.read_only:
+            lines.append("  Read only: true")
+        return "\n".join(lines)
+
+
+class ParameterError(RuntimeError):
+    """A parameter does not exist or its node does not answer."""
+
+
+class Parameters:
+    """The standard parameter services of one node (what ``ros2 param`` calls).
+
+    Args:
+        session: the client session.
+        node: node name, with or without the leading slash (``"sim"``, ``"/locomotion"``).
+        timeout: wall seconds to wait for the node's services and each answer.
+    """
+
+    def __init__(self, session: RosSession, node: str, timeout: float = 10.0) -> None:
+        self.session = session
+        self.node = node if node.startswith("/") else f"/{node}"
+        self.timeout = timeout
+        self._client = session.parameters(self.node)
+
+    def _ready(self) -> None:
+        try:
+            self.session.wait_for(self._client.services_are_ready, self.timeout, f"parameter services of {self.node}")
+        except WaitTimeout as error:
+            raise ParameterError(f"{error}; is {self.node} running?") from None
+
+    def list(self) -> list[str]:
+        self._ready()
+        response = self.session.wait_future(self._client.list_parameters([], 0), self.timeout, f"list of {self.node}")
+        return sorted(response.result.names)
+
+    def get(self, name: str) -> Any:
+        self._ready()
+        response = self.session.wait_future(self._client.get_parameters([name]), self.timeout, f"get {self.node} {name}")
+        if not response.values or response.values[0].type == ParameterType.PARAMETER_NOT_SET:
+            raise ParameterError(f"{self.node} has no parameter {name!r}")
+        return parameter_value_to_python(response.values[0])
+
+    def describe(self, name: str) -> ParameterInfo:
+        self._ready()
+        response = self.session.wait_future(
+            self._client.describe_parameters([name]), self.timeout, f"describe {self.node} {name}"
+        )
+        if not response.descriptors:
+            raise ParameterError(f"{self.node} has no parameter {name!r}")
+        d: ParameterDescriptor = response.descriptors[0]
+        if d.type == ParameterType.PARAMETER_NOT_SET:
+            raise ParameterError(f"{self.node} has no parameter {name!r}")
+        span: tuple[float, float] | None = None
+        if d.floating_point_range:
+            span = (d.floating_point_range[0].from_value, d.floating_point_range[0].to_value)
+        elif d.integer_range:
+            span = (float(d.integer_range[0].from_value), float(d.integer_range[0].to_value))
+        return ParameterInfo(d.name or name, _TYPE_NAMES.get(d.type, str(d.type)), d.description, bool(d.read_only),
+                             d.additional_constraints, span)
+
+    def set(self, name: str, value: Any, coerce: bool = True) -> tuple[bool, str]:
+        """Set a parameter; returns (successful, reason). The node's reason is passed on verbatim.
+
+        With ``coerce``, an integer given for a double parameter is sent as a double (``ros2
+        param set`` would refuse it as the wrong type).
+        """
+        if coerce and isinstance(value, int) and not isinstance(value, bool):
+            try:
+                if self.describe(name).type == "double":
+                    value = float(value)
+            except ParameterError:
+                pass
+        self._ready()
+        response = self.session.wait_future(
+            self._client.set_parameters([Parameter(name, value=value)]), self.timeout, f"set {self.node} {name}"
+        )
+        result = response.results[0]
+        return bool(result.successful), str(result.reason)

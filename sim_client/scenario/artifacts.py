@@ -1,0 +1,355 @@
+"""What a scenario run leaves behind, in one folder per run.
+
+- ``report.json``: expectations with measured values and verdicts, goals, wall and sim time;
+- ``recording.mcap``: every topic (action feedback and status included), serialized CDR with
+  ROS 2 message definitions (profile ``ros2``, schema encoding ``ros2msg``), as rosbag2 writes
+  it, so Foxglove and rosbag2 read it;
+- ``video.mp4``: the run re-rendered offscreen from the recorded state with the ``track`` camera;
+- ``*.png``: plots of the quantities the expectations check.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import math
+import pathlib
+import re
+import sys
+import threading
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+PRIMITIVES = {"bool", "byte", "char", "float32", "float64", "int8", "uint8", "int16", "uint16", "int32", "uint32",
+              "int64", "uint64", "string", "wstring"}
+# Interfaces installed without their .msg text (only .idl/.json): the definitions, verbatim.
+_KNOWN_DEFINITIONS = {"unique_identifier_msgs/msg/UUID": "uint8[16] uuid\n"}
+_SEPARATOR = "=" * 80
+
+
+# ----- message definitions ------------------------------------------------------------------
+def _share_dirs() -> list[pathlib.Path]:
+    return [pathlib.Path(sys.prefix) / "share"]
+
+
+def _read_interface(full_name: str) -> str:
+    """Text of ``pkg/msg/Type`` or of a part of an action (``pkg/action/Walk_Feedback``)."""
+    if full_name in _KNOWN_DEFINITIONS:
+        return _KNOWN_DEFINITIONS[full_name]
+    package, kind, name = full_name.split("/")
+    for share in _share_dirs():
+        if kind == "action":
+            base, _, part = name.rpartition("_")
+            action_file = share / package / "action" / f"{base}.action"
+            if action_file.exists():
+                goal, result, feedback = (re.split(r"^---\s*$", action_file.read_text(), flags=re.MULTILINE) + ["", ""])[:3]
+                if part == "Goal":
+                    return goal
+                if part == "Result":
+                    return result
+                if part == "Feedback":
+                    return feedback
+                if part == "FeedbackMessage":
+                    return f"unique_identifier_msgs/UUID goal_id\n{package}/action/{base}_Feedback feedback\n"
+        path = share / package / kind / f"{name}.msg"
+        if path.exists():
+            return path.read_text()
+    raise KeyError(f"no definition found for {full_name}")
+
+
+def _dependencies(package: str, text: str) -> list[str]:
+    found = []
+    for line in text.splitlines():
+        line = line.split("#", 1)[0].strip()
+        if not line:
+            continue
+        field_type = line.split()[0]
+        base = re.sub(r"\[.*\]$", "", field_type)
+        base = re.sub(r"<=\d+$", "", base)
+        if base in PRIMITIVES:
+            continue
+        if base == "Header":
+            found.append("std_msgs/msg/Header")
+        elif "/" in base:
+            parts = base.split("/")
+            found.append(base if len(parts) == 3 else f"{parts[0]}/msg/{parts[1]}")
+        else:
+            found.append(f"{package}/msg/{base}")
+    return found
+
+
+def message_definition(full_name: str) -> str:
+    """The ``ros2msg`` definition of a type with every nested type appended, as rosbag2 stores it."""
+    main = _read_interface(full_name)
+    seen: list[str] = []
+    queue = _dependencies(full_name.split("/")[0], main)
+    while queue:
+        dep = queue.pop(0)
+        if dep in seen:
+            continue
+        seen.append(dep)
+        queue.extend(_dependencies(dep.split("/")[0], _read_interface(dep)))
+    parts = [main.rstrip("\n")]
+    for dep in seen:
+        parts.append(f"{_SEPARATOR}\nMSG: {dep}\n{_read_interface(dep).rstrip()}")
+    return "\n".join(parts) + "\n"
+
+
+def import_type(full_name: str) -> Any:
+    """Python class of ``pkg/msg/Type`` or ``pkg/action/Walk_FeedbackMessage``."""
+    package, kind, name = full_name.split("/")
+    module = importlib.import_module(f"{package}.{kind}")
+    if kind == "action" and not hasattr(module, name):
+        base, _, part = name.rpartition("_")
+        return getattr(getattr(module, base).Impl, part)
+    return getattr(module, name)
+
+
+def msg_to_dict(msg: Any) -> Any:
+    """A ROS message as plain JSON-able values."""
+    if hasattr(msg, "get_fields_and_field_types"):
+        return {name: msg_to_dict(getattr(msg, name)) for name in msg.get_fields_and_field_types()}
+    if isinstance(msg, (list, tuple)) or type(msg).__name__ == "array" or isinstance(msg, np.ndarray):
+        return [msg_to_dict(v) for v in msg]
+    if isinstance(msg, float) and not math.isfinite(msg):
+        return None
+    if isinstance(msg, (bytes, bytearray)):
+        return list(msg)
+    if isinstance(msg, np.generic):
+        return msg.item()
+    return msg
+
+
+# ----- MCAP recording -----------------------------------------------------------------------
+class McapRecorder:
+    """Subscribes to every topic it discovers (raw CDR) and writes them into an MCAP file.
+
+    Call :meth:`discover` now and then (new topics appear as nodes start); :meth:`close` at the
+    end. Log times are the session's sim time [ns] at reception.
+    """
+
+    def __init__(self, session: Any, path: pathlib.Path, exclude: tuple[str, ...] = ()) -> None:
+        from mcap.writer import CompressionType, Writer
+
+        self.session = session
+        self.path = path
+        self._stream = open(path, "wb")  # noqa: SIM115 - closed in close()
+        self._writer = Writer(self._stream, compression=CompressionType.ZSTD)
+        self._writer.start(profile="ros2", library="sim scenario runner")
+        self._lock = threading.Lock()
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[str, int] = {}
+        self._subscriptions: list[Any] = []
+        self._sequence = 0
+        self._exclude = exclude
+        self.counts: dict[str, int] = {}
+        self.skipped: dict[str, str] = {}
+        self._closed = False
+
+    def discover(self) -> None:
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+        node = self.session.node
+        for topic, types in node.get_topic_names_and_types():
+            if topic in self._channels or topic in self.skipped or topic in self._exclude or not types:
+                continue
+            type_name = types[0]
+            try:
+                msg_type = import_type(type_name)
+                definition = message_definition(type_name)
+            except (ImportError, AttributeError, KeyError, ValueError) as error:
+                self.skipped[topic] = f"{type_name}: {error}"
+                continue
+            publishers = node.get_publishers_info_by_topic(topic)
+            qos = QoSProfile(depth=1000)
+            if publishers and all(p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for p in publishers):
+                qos.durability = DurabilityPolicy.TRANSIENT_LOCAL
+            if any(p.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for p in publishers):
+                qos.reliability = ReliabilityPolicy.BEST_EFFORT
+            with self._lock:
+                if type_name not in self._schemas:
+                    self._schemas[type_name] = self._writer.register_schema(type_name, "ros2msg", definition.encode())
+                self._channels[topic] = self._writer.register_channel(topic, "cdr", self._schemas[type_name])
+                self.counts[topic] = 0
+            self._subscriptions.append(node.create_subscription(
+                msg_type, topic, lambda data, topic=topic: self._on_message(topic, data), qos, raw=True))
+
+    def _on_message(self, topic: str, data: bytes) -> None:
+        now = self.session.node.get_clock().now().nanoseconds
+        with self._lock:
+            if self._closed:
+                return
+            self._sequence += 1
+            self._writer.add_message(self._channels[topic], log_time=now, data=data, publish_time=now,
+                                     sequence=self._sequence)
+            self.counts[topic] += 1
+
+    def close(self) -> None:
+        for subscription in self._subscriptions:
+            self.session.node.destroy_subscription(subscription)
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            self._writer.finish()
+            self._stream.close()
+
+
+def read_mcap_topics(path: pathlib.Path) -> dict[str, int]:
+    """Message count per topic of an MCAP file (decodes every message to check it reads)."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    counts: dict[str, int] = {}
+    with open(path, "rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        for _schema, channel, _message, _decoded in reader.iter_decoded_messages():
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+    return counts
+
+
+# ----- state history used for measures, video and plots -------------------------------------
+@dataclass
+class Series:
+    """Time-stamped samples [s of sim time] of one quantity, columns in ``values`` (n, k)."""
+
+    t: np.ndarray
+    values: np.ndarray
+
+    def at(self, time: float) -> np.ndarray | None:
+        """The last sample at or before ``time`` (the first one if all are later)."""
+        if len(self.t) == 0:
+            return None
+        i = int(np.searchsorted(self.t, time + 1e-6, side="right")) - 1
+        return self.values[max(i, 0)]
+
+    def window(self, start: float, end: float) -> Series:
+        mask = (self.t >= start - 1e-6) & (self.t <= end + 1e-6)
+        return Series(self.t[mask], self.values[mask])
+
+
+def stamp_s(stamp: Any) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def yaw_of(q: Any) -> float:
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def odom_series(messages: list[Any]) -> Series:
+    """Columns x, y, z [m], yaw [rad], qw, qx, qy, qz."""
+    rows = [(stamp_s(m.header.stamp), p.position.x, p.position.y, p.position.z, yaw_of(p.orientation),
+             p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z)
+            for m in messages for p in (m.pose.pose,)]
+    return _series(rows, 8)
+
+
+def object_series(messages: list[Any], name: str) -> Series:
+    """Columns x, y, z [m], qw, qx, qy, qz of one object."""
+    rows = []
+    for m in messages:
+        if name in m.names:
+            p = m.poses[list(m.names).index(name)]
+            rows.append((stamp_s(m.header.stamp), p.position.x, p.position.y, p.position.z,
+                         p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z))
+    return _series(rows, 7)
+
+
+def joint_series(messages: list[Any]) -> tuple[list[str], Series]:
+    if not messages:
+        return [], _series([], 0)
+    names = list(messages[-1].name)
+    rows = [(stamp_s(m.header.stamp), *m.position) for m in messages if len(m.position) == len(names)]
+    return names, _series(rows, len(names))
+
+
+def _series(rows: list[tuple], width: int) -> Series:
+    if not rows:
+        return Series(np.zeros(0), np.zeros((0, width)))
+    array = np.array(sorted(rows, key=lambda r: r[0]), dtype=float)
+    return Series(array[:, 0], array[:, 1:])
+
+
+# ----- video --------------------------------------------------------------------------------
+def render_video(robot_name: str, odom: Series, joints: tuple[list[str], Series], objects: dict[str, Series],
+                 start: float, end: float, path: pathlib.Path, fps: int = 30, size: tuple[int, int] = (640, 480),
+                 speed: float = 1.0) -> int:
+    """Re-render the recorded run with the model's ``track`` camera into an MP4; returns frames.
+
+    Args:
+        speed: sim seconds per video second.
+    """
+    import imageio_ffmpeg
+    import mujoco
+
+    import robot_models
+
+    robot = robot_models.load(robot_name)
+    model = robot.model
+    data = mujoco.MjData(model)
+    if robot.default_keyframe:
+        mujoco.mj_resetDataKeyframe(model, data, model.key(robot.default_keyframe).id)
+    names, joint_values = joints
+    joint_adr = [(i, int(model.joint(n).qposadr[0])) for i, n in enumerate(names) if _has_joint(model, n)]
+    base_adr = -1
+    if robot.floating_base:
+        body = model.body(robot.base_body).id
+        base_adr = int(model.jnt_qposadr[int(model.body_jntadr[body])])
+    object_adr = {name: int(model.jnt_qposadr[int(model.body_jntadr[model.body(name).id])]) for name in objects}
+    width, height = size
+    model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
+    model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+    frames = max(1, int((end - start) / speed * fps))
+    writer = imageio_ffmpeg.write_frames(str(path), (width, height), fps=fps, codec="libx264", pix_fmt_out="yuv420p",
+                                         macro_block_size=16, output_params=["-preset", "veryfast", "-crf", "26"])
+    writer.send(None)
+    count = 0
+    with mujoco.Renderer(model, height=height, width=width) as renderer:
+        for k in range(frames):
+            t = start + k * speed / fps
+            row = joint_values.at(t)
+            if row is not None:
+                for i, adr in joint_adr:
+                    data.qpos[adr] = row[i]
+            if base_adr >= 0:
+                pose = odom.at(t)
+                if pose is not None:
+                    data.qpos[base_adr:base_adr + 3] = pose[0:3]
+                    data.qpos[base_adr + 3:base_adr + 7] = pose[4:8]
+            for name, adr in object_adr.items():
+                pose = objects[name].at(t)
+                if pose is not None:
+                    data.qpos[adr:adr + 7] = pose[0:7]
+            mujoco.mj_forward(model, data)
+            renderer.update_scene(data, camera="track")
+            writer.send(np.ascontiguousarray(renderer.render()))
+            count += 1
+    writer.close()
+    return count
+
+
+def _has_joint(model: Any, name: str) -> bool:
+    try:
+        model.joint(name)
+    except KeyError:
+        return False
+    return True
+
+
+# ----- report -------------------------------------------------------------------------------
+def write_json(path: pathlib.Path, data: Any) -> None:
+    path.write_text(json.dumps(data, indent=2, default=_json_default) + "\n")
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, (np.generic,)):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, pathlib.Path):
+        return str(value)
+    if isinstance(value, tuple):
+        return list(value)
+    return str(value)

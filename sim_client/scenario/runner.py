@@ -1,0 +1,692 @@
+"""Run a scenario: bring up its nodes, drive sim time, run the steps, judge the expectations.
+
+By default (``rtf`` 0) the run is lock-stepped: the sim starts paused and the runner advances it
+in small chunks with ``/sim/step``, checking triggers and conditions between chunks, as fast as
+the machine allows. With ``rtf`` > 0 the sim runs free at that real-time factor and the runner
+follows ``/clock``.
+"""
+
+from __future__ import annotations
+
+import datetime
+import math
+import pathlib
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from typing import Any, TextIO
+
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+
+from sim_client.actions import ACTION_CLIENTS, GoalHandle, ParameterError, Parameters, _ActionClientBase
+from sim_client.processes import running
+from sim_client.scenario import artifacts
+from sim_client.scenario.schema import (
+    CancelStep, CmdVelStep, Comparison, Condition, Expectation, Measure, ResetStep, Scenario, SendGoalStep,
+    SetParamStep, Step, WaitStep,
+)
+from sim_client.session import RosSession, WaitTimeout
+from sim_interfaces.msg import ObjectStates
+from sim_interfaces.srv import Reset
+from sim_interfaces.srv import Step as StepSrv
+
+CHUNK_S = 0.02  # sim time advanced between checks [s]
+STARTUP_WALL_S = 90.0
+SERVICE_WALL_S = 30.0
+
+
+class StepFailure(RuntimeError):
+    """A step could not be carried out (timeout, server missing); the run fails."""
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """How to run: ``rtf`` None = the scenario's own; 0 = lock-stepped as fast as possible."""
+
+    rtf: float | None = None
+    record: bool = False
+    video: bool = False
+    plots: bool = False
+    out: pathlib.Path = pathlib.Path("scenario_runs")
+    quiet: bool = False
+    launch: bool = True  # False: use nodes already running (``sim up``)
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The judgement of one expectation."""
+
+    name: str
+    passed: bool
+    expected: str
+    measured: Any
+    unit: str = ""
+    detail: str = ""
+    line: int = 0
+
+    def line_text(self) -> str:
+        value = _fmt(self.measured)
+        unit = f" {self.unit}" if self.unit and isinstance(self.measured, (int, float)) else ""
+        tail = f" ({self.detail})" if self.detail else ""
+        return f"{'PASS' if self.passed else 'FAIL'}  {self.name}: measured {value}{unit}, expected {self.expected}{tail}"
+
+
+@dataclass
+class RunResult:
+    scenario: str
+    passed: bool
+    verdicts: list[Verdict]
+    failures: list[str]
+    wall_time: float
+    sim_time: float
+    folder: pathlib.Path
+    report: dict[str, Any] = field(default_factory=dict)
+
+
+def _fmt(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
+
+
+def _field(obj: Any, path: str) -> Any:
+    for part in path.split("."):
+        if obj is None:
+            return None
+        obj = getattr(obj, part, None)
+    return obj
+
+
+class _Progress:
+    """One status line, rewritten in place on a terminal; plain lines otherwise."""
+
+    def __init__(self, stream: TextIO, quiet: bool) -> None:
+        self.stream = stream
+        self.quiet = quiet
+        self.tty = stream.isatty()
+        self._last = 0.0
+        self._width = 0
+
+    def update(self, text: str) -> None:
+        if self.quiet:
+            return
+        now = time.monotonic()
+        if self.tty:
+            if now - self._last < 0.1:
+                return
+            self._last = now
+            padded = text[:160].ljust(self._width)
+            self._width = len(text[:160])
+            self.stream.write("\r" + padded)
+            self.stream.flush()
+        elif now - self._last >= 2.0:
+            self._last = now
+            self.stream.write(text + "\n")
+            self.stream.flush()
+
+    def say(self, text: str) -> None:
+        if self.quiet:
+            return
+        if self.tty and self._width:
+            self.stream.write("\r" + " " * self._width + "\r")
+            self._width = 0
+        self.stream.write(text + "\n")
+        self.stream.flush()
+
+
+class ScenarioRun:
+    """One run of one scenario against nodes reachable through ``session``."""
+
+    def __init__(self, scenario: Scenario, session: RosSession, options: RunOptions, folder: pathlib.Path,
+                 stream: TextIO = sys.stdout) -> None:
+        self.scenario = scenario
+        self.session = session
+        self.options = options
+        self.folder = folder
+        self.rtf = scenario.rtf if options.rtf is None else options.rtf
+        self.lock_step = self.rtf == 0.0
+        self.progress = _Progress(stream, options.quiet)
+        node = session.node
+        self.clock = session.record(Clock, "/clock", keep=10)
+        self.odom = session.record(Odometry, "/odom", keep=1_000_000)
+        self.joints = session.record(JointState, "/joint_states", keep=1_000_000)
+        self.objects = session.record(ObjectStates, "/objects", keep=1_000_000)
+        self._reset = node.create_client(Reset, "/sim/reset")
+        self._step = node.create_client(StepSrv, "/sim/step")
+        self._cmd_vel = node.create_publisher(Twist, "/cmd_vel", 10)
+        self.clients: dict[str, _ActionClientBase] = {}
+        self.goals: dict[str, GoalHandle] = {}
+        self.goal_actions: dict[str, str] = {}
+        self.cancel_triggers: dict[str, Any] = {}
+        self.marks: dict[str, float] = {}
+        self.param_events: list[dict[str, Any]] = []
+        self.param_verdicts: list[Verdict] = []
+        self.failures: list[str] = []
+        self._sim_now = 0.0
+        self._control_dt = 0.0
+        self._step_index = 0
+        self._step_label = ""
+        self.mcap: artifacts.McapRecorder | None = None
+        self._last_discover = 0.0
+
+    # ----- time ------------------------------------------------------------------------
+    def now(self) -> float:
+        latest = self.clock.latest
+        if latest is not None:
+            self._sim_now = max(self._sim_now, artifacts.stamp_s(latest.clock))
+        return self._sim_now
+
+    def _call(self, client: Any, request: Any, what: str) -> Any:
+        self.session.wait_for(client.service_is_ready, SERVICE_WALL_S, f"service {what}")
+        return self.session.wait_future(client.call_async(request), SERVICE_WALL_S, f"response of {what}")
+
+    def _step_sim(self, steps: int) -> float:
+        response = self._call(self._step, StepSrv.Request(steps=steps), "/sim/step")
+        if not response.success:
+            raise StepFailure(f"/sim/step refused: {response.message}")
+        self._sim_now = max(self._sim_now, response.sim_time)
+        return float(response.sim_time)
+
+    def start(self) -> None:
+        """Wait for the sim (and servers), calibrate stepping, reset to the keyframe."""
+        self.session.wait_for(self._reset.service_is_ready, STARTUP_WALL_S, "the /sim node (service /sim/reset)")
+        if self.options.record:
+            self.mcap = artifacts.McapRecorder(self.session, self.folder / "recording.mcap")
+            self.mcap.discover()
+        for action in self.scenario.actions:
+            client = ACTION_CLIENTS[action](self.session)
+            try:
+                client.wait_for_server(SERVICE_WALL_S)
+            except Exception as error:
+                raise StepFailure(f"{error}") from None
+            self.clients[action] = client
+        if self.lock_step:
+            t0 = self._step_sim(1)
+            self._control_dt = self._step_sim(1) - t0
+            if self._control_dt <= 0:
+                raise StepFailure("/sim/step did not advance sim time; is the sim paused by someone else?")
+        else:
+            self.session.wait_for(lambda: self.clock.count > 0, STARTUP_WALL_S, "/clock")
+        self._do_reset(self.scenario.keyframe)
+        self.marks["start"] = self.now()
+        if self.mcap is not None:
+            self.mcap.discover()
+
+    def advance(self, dt: float) -> None:
+        """Let about ``dt`` [s] of sim time pass, then check triggers."""
+        target = self.now() + dt
+        if self.lock_step:
+            steps = max(1, round(dt / self._control_dt))
+            self._step_sim(steps)
+        else:
+            self.session.wait_for(lambda: self.now() >= target - 1e-9, max(10.0, 20.0 * dt / self.rtf), "sim time to advance")
+        self._tick()
+
+    def _elapsed(self) -> float:
+        return self.now() - self.marks.get("start", 0.0)
+
+    def _tick(self) -> None:
+        now = self.now()
+        for goal_id, handle in self.goals.items():
+            if handle.done and f"{goal_id}.done" not in self.marks:
+                self.marks[f"{goal_id}.done"] = now
+                outcome = handle.outcome()
+                self.progress.say(f"        goal {goal_id}: {outcome}  (t={self._elapsed():.2f} s)")
+            trigger = self.cancel_triggers.get(goal_id)
+            if trigger is not None and not handle.done:
+                fire = (now - self.marks[f"{goal_id}.sent"] >= trigger.after - 1e-9 if trigger.after is not None
+                        else self._condition_holds(trigger.when))
+                if fire:
+                    del self.cancel_triggers[goal_id]
+                    self.progress.say(f"        cancel {goal_id} ({trigger.describe()}) at t={self._elapsed():.2f} s")
+                    handle.cancel()
+        if self.mcap is not None and time.monotonic() - self._last_discover > 1.0:
+            self._last_discover = time.monotonic()
+            self.mcap.discover()
+        self.progress.update(self._status_line())
+
+    def _status_line(self) -> str:
+        total = len(self.scenario.steps)
+        bar_len = 20
+        filled = int(bar_len * self._step_index / max(total, 1))
+        text = f"[{'#' * filled}{'.' * (bar_len - filled)}] step {self._step_index}/{total} {self._step_label}  t={self._elapsed():6.2f} s"
+        for goal_id, handle in self.goals.items():
+            if not handle.done and handle.feedback is not None:
+                text += f"  {goal_id}: {_feedback_summary(handle.feedback)}"
+        return text
+
+    # ----- steps -----------------------------------------------------------------------
+    def run_steps(self) -> None:
+        for index, step in enumerate(self.scenario.steps):
+            self._step_index = index + 1
+            self._step_label = _describe_step(step)
+            if step.mark:
+                self.marks[step.mark] = self.now()
+            self.progress.say(f"  [{index + 1}/{len(self.scenario.steps)}] t={self._elapsed():6.2f} s  {self._step_label}")
+            self._run_step(step)
+            if self._elapsed() > self.scenario.timeout:
+                raise StepFailure(f"the scenario ran past its timeout of {self.scenario.timeout:g} s of sim time")
+
+    def _run_step(self, step: Step) -> None:
+        if isinstance(step, ResetStep):
+            self._do_reset(step.keyframe or self.scenario.keyframe)
+        elif isinstance(step, WaitStep):
+            if step.duration is not None:
+                self._wait_sim(step.duration)
+            elif step.until is not None:
+                condition = step.until
+                self._wait_until(lambda: self._condition_holds(condition), step.timeout, f"until {condition.describe()}",
+                                 step.line)
+            else:
+                goal_id = step.goal
+                assert goal_id is not None
+                self._wait_until(lambda: self.goals[goal_id].done, step.timeout, f"for goal {goal_id} to end", step.line)
+        elif isinstance(step, SendGoalStep):
+            self._send_goal(step)
+        elif isinstance(step, CancelStep):
+            handle = self.goals[step.goal]
+            accepted = handle.cancel()
+            self.progress.say(f"        cancel {step.goal}: {'accepted' if accepted else 'not accepted (goal already ended?)'}")
+        elif isinstance(step, SetParamStep):
+            self._set_param(step)
+        elif isinstance(step, CmdVelStep):
+            self._cmd_vel_for(step)
+
+    def _do_reset(self, keyframe: str) -> None:
+        response = self._call(self._reset, Reset.Request(keyframe=keyframe), "/sim/reset")
+        if not response.success:
+            raise StepFailure(f"/sim/reset failed: {response.message}")
+        self._sim_now = max(self._sim_now, response.sim_time)
+
+    def _wait_sim(self, duration: float) -> None:
+        end = self.now() + duration
+        while self.now() < end - 1e-6:
+            self.advance(min(CHUNK_S, end - self.now()))
+            self._check_wall()
+
+    def _wait_until(self, predicate: Callable[[], bool], timeout: float, what: str, line: int) -> None:
+        start = self.now()
+        while not predicate():
+            if self.now() - start > timeout:
+                raise StepFailure(f"line {line}: waited {timeout:g} s of sim time {what}")
+            self.advance(CHUNK_S)
+            self._check_wall()
+
+    def _check_wall(self) -> None:
+        if time.monotonic() - self._wall0 > self.scenario.wall_timeout:
+            raise StepFailure(f"the run took longer than its wall_timeout of {self.scenario.wall_timeout:g} s")
+
+    def _send_goal(self, step: SendGoalStep) -> None:
+        client = self.clients[step.action]
+        goal = _make_goal(step.action, step.goal)
+        self.marks[f"{step.id}.sent"] = self.now()
+        handle = client.send(goal, timeout=SERVICE_WALL_S)
+        self.goals[step.id] = handle
+        self.goal_actions[step.id] = step.action
+        if not handle.accepted:
+            self.marks[f"{step.id}.done"] = self.now()
+            self.progress.say(f"        goal {step.id}: rejected by {client.name}")
+            return
+        if step.cancel is not None:
+            self.cancel_triggers[step.id] = step.cancel
+        if step.wait:
+            self._wait_until(lambda: handle.done, step.timeout, f"for the result of goal {step.id}", step.line)
+            self._tick()
+
+    def _set_param(self, step: SetParamStep) -> None:
+        try:
+            ok, reason = Parameters(self.session, step.node).set(step.name, step.value)
+        except ParameterError as error:
+            raise StepFailure(str(error)) from None
+        self.param_events.append({"t": self._elapsed(), "node": step.node, "name": step.name, "value": step.value,
+                                  "accepted": ok, "reason": reason})
+        wanted = "refused" if step.refused else "accepted"
+        got = "accepted" if ok else "refused"
+        self.progress.say(f"        {step.node} {step.name} = {step.value!r}: {got}{': ' + reason if reason else ''}")
+        self.param_verdicts.append(Verdict(f"set {step.node} {step.name} = {step.value!r} is {wanted}", got == wanted,
+                                           wanted, got, detail=reason, line=step.line))
+
+    def _cmd_vel_for(self, step: CmdVelStep) -> None:
+        message = Twist()
+        message.linear.x, message.linear.y, message.angular.z = step.vx, step.vy, step.wz
+        end = self.now() + step.duration
+        while self.now() < end - 1e-6:
+            self._cmd_vel.publish(message)
+            self.advance(min(CHUNK_S, end - self.now()))
+            self._check_wall()
+        self._cmd_vel.publish(Twist())
+
+    # ----- measures --------------------------------------------------------------------
+    def _mark(self, name: str | None, default: str) -> float:
+        key = name or default
+        if key == "end" and "end" not in self.marks:
+            return self.now()
+        if key not in self.marks:
+            raise KeyError(f"mark {key!r} was not reached")
+        return self.marks[key]
+
+    def measure(self, measure: Measure) -> Any:
+        """The value of a measure now (or at its marks); None when it cannot be measured."""
+        a = measure.args
+        kind = measure.kind
+        if kind in ("base_displacement", "mean_speed", "base_height_min", "duration"):
+            t0, t1 = self._mark(a.get("from"), "start"), self._mark(a.get("to"), "end")
+            if kind == "duration":
+                return t1 - t0
+            odom = artifacts.odom_series(self.odom.messages())
+            if kind == "base_height_min":
+                window = odom.window(t0, t1)
+                return float(window.values[:, 2].min()) if len(window.t) else None
+            p0, p1 = odom.at(t0), odom.at(t1)
+            if p0 is None or p1 is None:
+                return None
+            distance = float(math.hypot(p1[0] - p0[0], p1[1] - p0[1]))
+            if kind == "base_displacement":
+                return distance
+            return distance / (t1 - t0) if t1 > t0 else None
+        if kind == "base_position":
+            pose = artifacts.odom_series(self.odom.messages()).at(self._mark(a.get("at"), "end"))
+            return None if pose is None else float(pose[{"x": 0, "y": 1, "z": 2, "yaw": 3}[a["axis"]]])
+        if kind in ("object_distance", "object_position"):
+            pose = artifacts.object_series(self.objects.messages(), a["object"]).at(self._mark(a.get("at"), "end"))
+            if pose is None:
+                return None
+            if kind == "object_position":
+                return float(pose[{"x": 0, "y": 1, "z": 2}[a["axis"]]])
+            return float(math.dist(pose[0:3], a["target"]))
+        if kind == "joint_position":
+            names, series = artifacts.joint_series(self.joints.messages())
+            row = series.at(self._mark(a.get("at"), "end"))
+            if row is None or a["joint"] not in names:
+                return None
+            return float(row[names.index(a["joint"])])
+        if kind == "parameter":
+            try:
+                return Parameters(self.session, a["node"]).get(a["name"])
+            except (ParameterError, WaitTimeout):
+                return None
+        handle = self.goals.get(a.get("goal", ""))
+        if handle is None:
+            return None
+        if kind == "feedback":
+            values = [_field(s.feedback, a["field"]) for s in handle.feedback_history]
+            if a["reduce"] == "count":
+                return len(values)
+            numbers = [float(v) for v in values if isinstance(v, (int, float))]
+            if not numbers:
+                return None
+            return {"last": numbers[-1], "max": max(numbers), "min": min(numbers)}[a["reduce"]]
+        outcome = handle.outcome()
+        if outcome is None:
+            return None
+        if kind == "status":
+            return outcome.status
+        if kind == "error_code":
+            return outcome.error_name
+        value = _field(outcome.result, a["field"])
+        return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else value
+
+    def _condition_holds(self, condition: Condition | None) -> bool:
+        if condition is None:
+            return False
+        try:
+            return condition.comparison.holds(self.measure(condition.measure))
+        except KeyError:
+            return False
+
+    def judge(self, expectation: Expectation) -> Verdict:
+        if expectation.outcome_goal is not None:
+            handle = self.goals.get(expectation.outcome_goal)
+            outcome = handle.outcome() if handle is not None else None
+            parts = [p for p in (expectation.outcome_status, expectation.outcome_error) if p]
+            expected = " / ".join(parts)
+            if outcome is None:
+                measured = "not sent" if handle is None else "still running"
+                return Verdict(expectation.name, False, expected, measured, line=expectation.line)
+            ok = ((expectation.outcome_status is None or outcome.status == expectation.outcome_status)
+                  and (expectation.outcome_error is None or outcome.error_name == expectation.outcome_error))
+            measured = f"{outcome.status} / {outcome.error_name}"
+            return Verdict(expectation.name, ok, expected, measured, detail=outcome.error_msg, line=expectation.line)
+        assert expectation.measure is not None and expectation.comparison is not None
+        try:
+            value = self.measure(expectation.measure)
+            detail = ""
+        except KeyError as error:
+            value, detail = None, str(error).strip("'\"")
+        comparison: Comparison = expectation.comparison
+        ok = comparison.holds(value)
+        if value is None and not detail:
+            detail = "nothing was measured"
+        return Verdict(expectation.name, ok, f"{expectation.measure.kind} {comparison.describe()}", value,
+                       expectation.measure.unit, detail, expectation.line)
+
+    # ----- the whole run -------------------------------------------------------------------
+    def execute(self) -> RunResult:
+        self._wall0 = time.monotonic()
+        scenario = self.scenario
+        mode = "lock-stepped, as fast as possible" if self.lock_step else f"real-time factor {self.rtf:g}"
+        self.progress.say(f"scenario {scenario.name} ({scenario.robot}, seed {scenario.seed}, {mode})")
+        sim_start = 0.0
+        try:
+            self.start()
+            sim_start = self.now()
+            self.run_steps()
+        except (StepFailure, WaitTimeout) as error:
+            self.failures.append(str(error))
+            self.progress.say(f"  step failed: {error}")
+        except Exception as error:  # noqa: BLE001 - any error ends the run as a failure with a report
+            self.failures.append(f"{type(error).__name__}: {error}")
+            self.progress.say(f"  error: {type(error).__name__}: {error}")
+        self.marks.setdefault("end", self.now())
+        self._settle_records()
+        verdicts = [*self.param_verdicts, *(self.judge(e) for e in scenario.expectations)]
+        self._finish_goals()
+        wall = time.monotonic() - self._wall0
+        sim = self.now() - sim_start
+        passed = not self.failures and all(v.passed for v in verdicts)
+        self.progress.say("")
+        for verdict in verdicts:
+            self.progress.say("  " + verdict.line_text())
+        for failure in self.failures:
+            self.progress.say(f"  FAIL  {failure}")
+        result = RunResult(scenario.name, passed, verdicts, list(self.failures), wall, sim, self.folder)
+        result.report = self._report(result)
+        return result
+
+    def _settle_records(self) -> None:
+        """Let the last published state arrive before measuring (deadline, not a sleep)."""
+        end = self.marks["end"]
+
+        def arrived() -> bool:
+            latest = self.odom.latest
+            return latest is not None and artifacts.stamp_s(latest.header.stamp) >= end - 0.05
+
+        try:
+            self.session.wait_for(arrived, 5.0, "the final /odom")
+        except WaitTimeout:
+            pass
+
+    def _finish_goals(self) -> None:
+        for goal_id, handle in self.goals.items():
+            if not handle.done:
+                self.progress.say(f"        goal {goal_id} still running at the end: canceling it")
+                try:
+                    handle.cancel()
+                    if self.lock_step:
+                        deadline = time.monotonic() + 10.0
+                        while not handle.done and time.monotonic() < deadline:
+                            self._step_sim(max(1, round(CHUNK_S / self._control_dt)))
+                    else:
+                        self.session.wait_for(lambda: handle.done, 10.0, f"goal {goal_id} to end after cancel")
+                except (StepFailure, WaitTimeout):
+                    pass
+
+    def _report(self, result: RunResult) -> dict[str, Any]:
+        goals = {}
+        for goal_id, handle in self.goals.items():
+            outcome = handle.outcome()
+            goals[goal_id] = {
+                "action": self.goal_actions[goal_id],
+                "accepted": handle.accepted,
+                "status": outcome.status if outcome else "RUNNING",
+                "error_code": outcome.error_code if outcome else None,
+                "error_name": outcome.error_name if outcome else None,
+                "error_msg": outcome.error_msg if outcome else "",
+                "sent_at": self.marks.get(f"{goal_id}.sent", 0.0) - self.marks.get("start", 0.0),
+                "done_at": self.marks.get(f"{goal_id}.done", math.nan) - self.marks.get("start", 0.0),
+                "feedback_count": len(handle.feedback_history),
+                "last_feedback": artifacts.msg_to_dict(handle.feedback) if handle.feedback is not None else None,
+                "result": artifacts.msg_to_dict(outcome.result) if outcome and outcome.result is not None else None,
+            }
+        start = self.marks.get("start", 0.0)
+        return {
+            "scenario": self.scenario.name,
+            "file": str(self.scenario.path),
+            "description": self.scenario.description,
+            "robot": self.scenario.robot,
+            "scene": self.scenario.scene,
+            "seed": self.scenario.seed,
+            "mode": "lock-step" if self.lock_step else "free-run",
+            "real_time_factor": self.rtf,
+            "started": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+            "passed": result.passed,
+            "wall_time_s": round(result.wall_time, 3),
+            "sim_time_s": round(result.sim_time, 3),
+            "wall_per_sim": round(result.wall_time / result.sim_time, 3) if result.sim_time > 0 else None,
+            "expectations": [asdict(v) for v in result.verdicts],
+            "failures": result.failures,
+            "marks": {k: round(v - start, 4) for k, v in self.marks.items()},
+            "goals": goals,
+            "parameters": self.param_events,
+            "artifacts": {},
+        }
+
+
+# ----- goals from scenario data -------------------------------------------------------------
+def _make_goal(action: str, g: dict[str, Any]) -> Any:
+    client = ACTION_CLIENTS[action]
+    if action == "walk":
+        return client.goal(g["distance"], g["speed"], g["timeout"])
+    if action == "navigate":
+        return client.goal(g["x"], g["y"], g["yaw"], g["frame"])
+    if action == "move_arm":
+        return client.goal(*g["position"], rpy=g["rpy"], arm=g["arm"], position_tolerance=g["position_tolerance"],
+                           orientation_tolerance=g["orientation_tolerance"],
+                           max_velocity_scaling=g["max_velocity_scaling"], timeout=g["timeout"], frame=g["frame"])
+    return client.goal(g["object"], g["place"], arm=g["arm"], timeout=g["timeout"])
+
+
+def _describe_step(step: Step) -> str:
+    if isinstance(step, ResetStep):
+        return f"reset{' to ' + step.keyframe if step.keyframe else ''}"
+    if isinstance(step, WaitStep):
+        if step.duration is not None:
+            return f"wait {step.duration:g} s"
+        if step.until is not None:
+            return f"wait until {step.until.describe()}"
+        return f"wait for goal {step.goal}"
+    if isinstance(step, SendGoalStep):
+        goal = ", ".join(f"{k}={v}" for k, v in step.goal.items() if v not in (None, "", 0.0) and k != "arm_known")
+        extra = f", cancel {step.cancel.describe()}" if step.cancel else ""
+        return f"send {step.action} goal {step.id} ({goal}){'' if step.wait else ' without waiting'}{extra}"
+    if isinstance(step, CancelStep):
+        return f"cancel goal {step.goal}"
+    if isinstance(step, SetParamStep):
+        return f"set {step.node} {step.name} = {step.value!r}{' (must be refused)' if step.refused else ''}"
+    if isinstance(step, CmdVelStep):
+        return f"/cmd_vel vx={step.vx:g} vy={step.vy:g} wz={step.wz:g} for {step.duration:g} s"
+    return type(step).__name__
+
+
+def _feedback_summary(feedback: Any) -> str:
+    parts = []
+    for name in ("stage_name", "distance_walked", "current_speed", "distance_remaining", "position_error", "percent_complete"):
+        value = getattr(feedback, name, None)
+        if isinstance(value, str) and value:
+            parts.append(value)
+        elif isinstance(value, (int, float)):
+            parts.append(f"{name}={value:.3g}")
+    return " ".join(parts)
+
+
+# ----- entry point --------------------------------------------------------------------------
+def run_folder(base: pathlib.Path, name: str) -> pathlib.Path:
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    folder = base / f"{name}-{stamp}"
+    n = 1
+    while folder.exists():
+        n += 1
+        folder = base / f"{name}-{stamp}-{n}"
+    folder.mkdir(parents=True)
+    return folder
+
+
+def run(scenario: Scenario, options: RunOptions = RunOptions(), stream: TextIO = sys.stdout) -> RunResult:
+    """Bring up ``bringup --robot R`` (paused for lock-stepping), run the scenario, write artifacts."""
+    folder = run_folder(options.out, scenario.name)
+    rtf = scenario.rtf if options.rtf is None else options.rtf
+    args = ["bringup", "--robot", scenario.robot, "--scene", scenario.scene, "--rtf", f"{rtf:g}"]
+    if rtf == 0.0:
+        args.append("--paused")
+    with RosSession("scenario_runner", use_sim_time=True) as session:
+        if options.launch:
+            with running(args, log_dir=folder) as process:
+                run_ = ScenarioRun(scenario, session, options, folder, stream)
+                result = run_.execute()
+                if not process.alive():
+                    result.failures.append(f"bringup exited early with code {process.process.returncode}; see {process.log_path}")
+                    result.passed = False
+                    result.report["passed"] = False
+                    result.report["failures"] = result.failures
+                _write_artifacts(run_, result, stream)
+        else:
+            run_ = ScenarioRun(scenario, session, options, folder, stream)
+            result = run_.execute()
+            _write_artifacts(run_, result, stream)
+    return result
+
+
+def _write_artifacts(run_: ScenarioRun, result: RunResult, stream: TextIO) -> None:
+    folder = result.folder
+    paths: dict[str, str] = {}
+    if run_.mcap is not None:
+        run_.mcap.close()
+        paths["mcap"] = str(run_.mcap.path)
+        result.report["mcap_topics"] = dict(sorted(run_.mcap.counts.items()))
+    start, end = run_.marks.get("start", 0.0), run_.marks.get("end", 0.0)
+    if run_.options.plots:
+        from sim_client.scenario import plots
+
+        try:
+            for path in plots.make_plots(run_, folder):
+                paths.setdefault("plots", [])  # type: ignore[arg-type]
+                paths["plots"].append(str(path))  # type: ignore[attr-defined]
+        except Exception as error:  # noqa: BLE001 - an artifact failing must not hide the verdicts
+            result.report.setdefault("artifact_errors", []).append(f"plots: {type(error).__name__}: {error}")
+    if run_.options.video and end > start:
+        try:
+            objects = {name: artifacts.object_series(run_.objects.messages(), name)
+                       for name in (run_.objects.latest.names if run_.objects.latest else [])}
+            artifacts.render_video(run_.scenario.robot, artifacts.odom_series(run_.odom.messages()),
+                                   artifacts.joint_series(run_.joints.messages()), objects, start, end,
+                                   folder / "video.mp4")
+            paths["video"] = str(folder / "video.mp4")
+        except Exception as error:  # noqa: BLE001
+            result.report.setdefault("artifact_errors", []).append(f"video: {type(error).__name__}: {error}")
+    paths["report"] = str(folder / "report.json")
+    result.report["artifacts"] = paths
+    artifacts.write_json(folder / "report.json", result.report)
+    if not run_.options.quiet:
+        verdict = "PASSED" if result.passed else "FAILED"
+        ratio = f"{result.wall_time / result.sim_time:.2f}" if result.sim_time > 0 else "n/a"
+        stream.write(f"\n{result.scenario}: {verdict}  ({sum(v.passed for v in result.verdicts)}/{len(result.verdicts)} "
+                     f"expectations; wall {result.wall_time:.1f} s, sim {result.sim_time:.1f} s, wall/sim {ratio})\n")
+        for kind, path in paths.items():
+            stream.write(f"  {kind}: {path}\n")
+        for error in result.report.get("artifact_errors", []):
+            stream.write(f"  artifact error: {error}\n")
+        stream.flush()

@@ -1,0 +1,261 @@
+"""Arm controller, IK query and pick-and-place in the simulation core (headless, deterministic)."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+import robot_models
+from robot_models import g1_constants, panda_constants
+from sim_bridge import Pose, Simulation, Slot, UnknownNameError
+from sim_bridge.arm import (
+    ArmController, ArmMode, PickPlace, PickPlaceFailure, PickPlaceGoal, PickPlaceStage, solve_ik,
+)
+from sim_bridge.arm.kinematics import quat_to_mat
+from sim_bridge.errors import InvalidGoalError
+
+TOOL_DOWN = np.array([0.0, 1.0, 0.0, 0.0])  # tool z axis pointing at the table
+
+
+def _tool_down(yaw: float) -> np.ndarray:
+    return np.array([0.0, math.cos(0.5 * yaw), math.sin(0.5 * yaw), 0.0])
+
+
+def _run_until(sim: Simulation, condition, timeout_s: float) -> bool:
+    """Step control periods until ``condition()`` holds or the sim-time deadline passes."""
+    deadline = sim.time + timeout_s
+    while sim.time < deadline:
+        sim.step(1)
+        if condition():
+            return True
+    return False
+
+
+@pytest.fixture(scope="module")
+def panda() -> robot_models.RobotSpec:
+    return robot_models.load("panda")
+
+
+@pytest.fixture(scope="module")
+def g1() -> robot_models.RobotSpec:
+    return robot_models.load("g1")
+
+
+@pytest.fixture
+def panda_sim(panda):
+    sim = Simulation(panda)
+    arm = ArmController(panda)
+    sim.set_controller(Slot.ARM, arm)
+    return sim, arm
+
+
+@pytest.mark.parametrize("arms", [("panda", ("arm",)), ("g1", ("left_arm", "right_arm"))])
+def test_controller_knows_every_arm(arms, panda, g1):
+    robot = panda if arms[0] == "panda" else g1
+    assert tuple(ArmController(robot).arms) == arms[1]
+
+
+def test_panda_reaches_five_poses(panda_sim):
+    sim, arm = panda_sim
+    targets = [
+        Pose(np.array([0.5, 0.2, 0.3]), _tool_down(0.3)),
+        Pose(np.array([0.4, -0.3, 0.15]), _tool_down(-0.5)),
+        Pose(np.array([0.6, 0.0, 0.45]), TOOL_DOWN),
+        Pose(np.array([0.3, 0.3, 0.25]), _tool_down(0.8)),
+        Pose(np.array([0.55, -0.1, 0.1]), _tool_down(0.0)),
+    ]
+    for target in targets:
+        arm.set_target("arm", target, False, 0.5, 1.5)
+        assert _run_until(sim, lambda: arm.status("arm").settled, 6.0), arm.status("arm")
+        status = arm.status("arm")
+        assert status.position_error <= 1e-3
+        assert status.orientation_error <= 0.01
+        assert not status.unreachable
+        # The status reports the measured tool pose, not the command.
+        tcp = sim.data.site(panda_constants.TCP_SITE).xpos
+        assert np.linalg.norm(tcp - target.position) <= 1e-3
+
+
+def test_position_only_goal_ignores_orientation(panda_sim):
+    sim, arm = panda_sim
+    target = Pose(np.array([0.45, 0.1, 0.35]), np.array([1.0, 0.0, 0.0, 0.0]))  # tool up: not reachable as a pose
+    arm.set_target("arm", target, True, 0.5, 1.5)
+    assert _run_until(sim, lambda: arm.status("arm").settled, 6.0)
+    assert arm.status("arm").position_error <= 1e-3
+
+
+def test_hold_mid_move_stops_the_arm(panda_sim):
+    sim, arm = panda_sim
+    target = Pose(np.array([0.3, 0.4, 0.15]), TOOL_DOWN)
+    start = arm.status("arm").tool_pose.position.copy()
+    arm.set_target("arm", target, False, 0.3, 1.0)
+    sim.step(int(1.2 / sim.control_timestep))
+    moving_from = arm.status("arm").tool_pose.position.copy()
+    assert np.linalg.norm(moving_from - start) > 0.1  # it was moving
+    arm.hold("arm")
+    sim.step(1)
+    ctrl_after_one_period = sim.data.ctrl[:7].copy()
+    reference = arm.status("arm").reference_pose.position.copy()
+    sim.step(int(0.5 / sim.control_timestep))
+    status = arm.status("arm")
+    assert status.mode == ArmMode.HOLDING
+    np.testing.assert_allclose(sim.data.ctrl[:7], ctrl_after_one_period, atol=1e-3)  # joint targets froze (bias feed-forward aside)
+    np.testing.assert_allclose(status.reference_pose.position, reference)
+    assert np.linalg.norm(status.tool_pose.position - moving_from) < 0.01  # stopped within about one period of motion
+    assert np.linalg.norm(status.tool_pose.position - target.position) > 0.1
+    assert np.max(np.abs(sim.data.qvel[:7])) < 0.01
+
+
+@pytest.mark.parametrize(
+    ("position", "words"),
+    [((1.5, 0.0, 0.3), "workspace"), ((0.5, 0.0, -0.05), "below the table"), ((0.5, 0.0, 0.004), "IK converged")],
+)
+def test_unreachable_pose_is_reported_with_reason(panda_sim, position, words):
+    sim, arm = panda_sim
+    before = sim.data.qpos[:7].copy()
+    arm.set_target("arm", Pose(np.array(position), TOOL_DOWN), False, 0.5, 1.5)
+    sim.step(50)
+    status = arm.status("arm")
+    assert status.unreachable
+    assert not status.settled
+    assert words in status.reason
+    assert np.max(np.abs(sim.data.qpos[:7] - before)) < 1e-3  # the arm did not go anywhere
+
+
+def test_solve_ik_is_pure_and_reports_errors(panda):
+    data = mujoco.MjData(panda.model)
+    mujoco.mj_resetDataKeyframe(panda.model, data, panda.model.key(panda.default_keyframe).id)
+    qpos = data.qpos.copy()
+    result = solve_ik(panda, data, "arm", Pose(np.array([0.45, -0.2, 0.25]), _tool_down(0.4)), False)
+    assert result.success and result.reason == ""
+    assert result.joint_names == panda_constants.ARM_JOINTS
+    assert result.position_error < 1e-4 and result.orientation_error < 1e-3
+    np.testing.assert_array_equal(data.qpos, qpos)
+    far = solve_ik(panda, qpos, "arm", Pose(np.array([2.0, 0.0, 0.3]), TOOL_DOWN), False)
+    assert not far.success and "workspace" in far.reason
+
+
+def test_unknown_names_raise_with_the_valid_names(panda_sim, panda):
+    sim, arm = panda_sim
+    with pytest.raises(UnknownNameError, match="arms: arm"):
+        arm.set_target("left_arm", Pose(np.array([0.5, 0.0, 0.3]), TOOL_DOWN), False, 0.5, 1.0)
+    with pytest.raises(UnknownNameError, match="arms: arm"):
+        arm.status("gripper")
+    with pytest.raises(UnknownNameError, match="arms: arm"):
+        solve_ik(panda, sim.data, "right_arm", Pose(np.array([0.5, 0.0, 0.3]), TOOL_DOWN), False)
+    skill = PickPlace(arm)
+    sim.set_controller(Slot.ARM, skill)
+    with pytest.raises(UnknownNameError, match="box_0, box_1, box_2"):
+        skill.start(PickPlaceGoal("box_9", (0.4, 0.3, 0.0)))
+    with pytest.raises(InvalidGoalError, match="off the table"):
+        skill.start(PickPlaceGoal("box_1", (1.5, 0.0, 0.0)))
+    with pytest.raises(InvalidGoalError, match=r"\(0, 2"):
+        arm.set_target("arm", Pose(np.array([0.5, 0.0, 0.3]), TOOL_DOWN), False, 5.0, 1.0)
+    with pytest.raises(InvalidGoalError, match="width"):
+        arm.set_gripper("arm", 0.2, 20.0)
+
+
+def test_g1_arm_has_no_gripper(g1):
+    sim = Simulation(g1)
+    arm = ArmController(g1)
+    sim.set_controller(Slot.ARM, arm)
+    with pytest.raises(InvalidGoalError, match="no gripper"):
+        arm.set_gripper("right_arm", 0.02, 10.0)
+    with pytest.raises(UnknownNameError, match="left_arm, right_arm"):
+        arm.hold("arm")
+
+
+def _pick_place(sim: Simulation, skill: PickPlace, goal: PickPlaceGoal, during=None):
+    skill.start(goal)
+    max_height = 0.0
+    box = sim.model.body(goal.object_name).id
+    stages = []
+    while sim.time < 40.0:
+        sim.step(1)
+        progress = skill.progress()
+        if not stages or stages[-1] != progress.stage:
+            stages.append(progress.stage)
+        if progress.stage == PickPlaceStage.TRANSPORT:
+            max_height = max(max_height, float(sim.data.xpos[box][2]))
+        if during is not None:
+            during(progress)
+        if progress.done:
+            return progress, max_height, stages
+    raise AssertionError("pick-and-place did not end")
+
+
+def test_pick_and_place_box_by_friction(panda_sim):
+    sim, arm = panda_sim
+    skill = PickPlace(arm)
+    sim.set_controller(Slot.ARM, skill)
+    assert sim.model.neq == 0  # no weld or other equality can hold the box
+    place = (0.4, 0.3, 0.0)
+    progress, max_height, stages = _pick_place(sim, skill, PickPlaceGoal("box_1", place))
+    assert progress.success, progress.reason
+    assert stages == list(PickPlaceStage)
+    assert progress.failure == PickPlaceFailure.NONE and progress.percent == pytest.approx(100.0)
+    assert max_height > panda_constants.BOX_HALF_SIZE + 0.1  # it rose off the table while carried
+    expected = np.array([place[0], place[1], panda_constants.TABLE_TOP_Z + panda_constants.BOX_HALF_SIZE])
+    error = np.linalg.norm(sim.data.body("box_1").xpos - expected)
+    assert error < 0.005 and progress.placement_error == pytest.approx(error, abs=1e-4)
+    assert arm.status("arm").gripper.contact_bodies == ()  # released
+
+
+def test_pick_place_detects_a_dropped_object(panda_sim):
+    sim, arm = panda_sim
+    skill = PickPlace(arm)
+    sim.set_controller(Slot.ARM, skill)
+
+    def open_fingers_in_transport(progress):
+        if progress.stage == PickPlaceStage.TRANSPORT and not progress.done:
+            arm.set_gripper("arm", 0.08, 20.0)  # a fault opens the hand mid-air
+
+    progress, _, _ = _pick_place(sim, skill, PickPlaceGoal("box_1", (0.4, 0.3, 0.0)), open_fingers_in_transport)
+    assert not progress.success
+    assert progress.failure in (PickPlaceFailure.OBJECT_DROPPED, PickPlaceFailure.OBJECT_SLIPPED)
+    assert progress.stage == PickPlaceStage.TRANSPORT and "box_1" in progress.reason
+
+
+def test_pick_place_detects_a_missed_grasp(panda_sim):
+    sim, arm = panda_sim
+    skill = PickPlace(arm)
+    sim.set_controller(Slot.ARM, skill)
+    adr = int(sim.model.joint("box_1").qposadr[0])
+
+    def take_the_box_away(progress):
+        if progress.stage == PickPlaceStage.DESCEND and progress.stage_progress > 0.5 and sim.data.qpos[adr] < 0.7:
+            sim.data.qpos[adr : adr + 3] = [0.8, 0.4, 0.02]  # someone removes the box
+
+    progress, _, _ = _pick_place(sim, skill, PickPlaceGoal("box_1", (0.4, 0.3, 0.0)), take_the_box_away)
+    assert not progress.success
+    assert progress.failure == PickPlaceFailure.GRASP_MISSED and "without holding" in progress.reason
+
+
+def _tilt_deg(pose: Pose) -> float:
+    return math.degrees(math.acos(min(1.0, quat_to_mat(pose.orientation_wxyz)[2, 2])))
+
+
+def test_g1_right_arm_reaches_while_standing(g1):
+    sim = Simulation(g1)
+    arm = ArmController(g1)
+    sim.set_controller(Slot.ARM, arm)
+    sim.step(125)
+    pelvis = sim.base_state().pose
+    legs = [sim.model.actuator(j).id for j in g1_constants.LEFT_LEG_JOINTS + g1_constants.RIGHT_LEG_JOINTS]
+    left_arm = [sim.model.actuator(j).id for j in g1_constants.LEFT_ARM_JOINTS]
+    ctrl_before = sim.data.ctrl.copy()
+    start = arm.status("right_arm").tool_pose
+    target = Pose(start.position + np.array([0.15, 0.05, 0.15]), start.orientation_wxyz)
+    arm.set_target("right_arm", target, False, 0.15, 0.5)
+    assert _run_until(sim, lambda: arm.status("right_arm").settled, 6.0), arm.status("right_arm")
+    status = arm.status("right_arm")
+    assert status.position_error <= 1e-3 and status.orientation_error <= 0.01
+    np.testing.assert_array_equal(sim.data.ctrl[legs], ctrl_before[legs])  # legs and other arm untouched
+    np.testing.assert_array_equal(sim.data.ctrl[left_arm], ctrl_before[left_arm])
+    after = sim.base_state().pose
+    assert abs(after.position[2] - pelvis.position[2]) < 0.01
+    # The legs are plain PD servos (no balance loop): the arm motion makes the body sway by about a degree.
+    assert abs(_tilt_deg(after) - _tilt_deg(pelvis)) < 2.0, _tilt_deg(after)

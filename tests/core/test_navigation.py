@@ -1,0 +1,47 @@
+"""Occupancy grid, A* planning and path following (pure core, no ROS)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+import robot_models
+from sim_bridge.navigation import NoPathError, PathFollower, grid_from_obstacles, plan_path
+from sim_bridge.navigation.planner import path_length
+
+
+@pytest.fixture(scope="module")
+def grid():
+    return grid_from_obstacles(robot_models.load("g1", "course").obstacles).inflated(0.45)
+
+
+def test_path_goes_around_the_wall_and_stays_in_free_space(grid):
+    path = plan_path(grid, (0.0, 0.0), (3.0, 0.0))
+    clearance = grid_from_obstacles(robot_models.load("g1", "course").obstacles).inflated(0.40)
+    assert path[0] == (0.0, 0.0) and path[-1] == (3.0, 0.0)
+    assert max(abs(y) for _, y in path) > 0.9, "the wall spans y in [-0.9, 0.9]"
+    for (x0, y0), (x1, y1) in zip(path, path[1:]):
+        for i in range(21):
+            s = i / 20
+            assert clearance.is_free(x0 + s * (x1 - x0), y0 + s * (y1 - y0)), "at least 0.40 m from every obstacle"
+    assert 3.0 < path_length(path) < 6.0
+
+
+def test_goals_inside_obstacles_or_off_the_map_are_refused(grid):
+    with pytest.raises(NoPathError, match="inside an obstacle"):
+        plan_path(grid, (0.0, 0.0), (1.6, 0.0))
+    with pytest.raises(NoPathError, match="outside the mapped area"):
+        plan_path(grid, (0.0, 0.0), (50.0, 0.0))
+
+
+def test_follower_turns_toward_the_path_then_aligns_and_arrives():
+    follower = PathFollower([(0.0, 0.0), (0.0, 2.0)], goal_yaw=math.pi, xy_tolerance=0.1, yaw_tolerance=0.1)
+    start = follower.command(0.0, 0.0, 0.0, speed=0.3, max_yaw_rate=0.6)
+    assert start.phase == "follow" and start.wz > 0 and start.vx == 0.0, "turn left before walking"
+    walking = follower.command(0.0, 1.0, math.pi / 2, speed=0.3, max_yaw_rate=0.6)
+    assert walking.vx > 0.2 and abs(walking.wz) < 0.05
+    assert walking.distance_remaining == pytest.approx(1.0, abs=1e-6)
+    aligning = follower.command(0.0, 1.97, math.pi / 2, speed=0.3, max_yaw_rate=0.6)
+    assert aligning.phase == "align" and aligning.vx == 0.0 and aligning.wz > 0
+    assert follower.command(0.0, 1.97, math.pi - 0.05, speed=0.3, max_yaw_rate=0.6).phase == "arrived"

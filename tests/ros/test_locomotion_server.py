@@ -1,0 +1,180 @@
+"""Walk, /cmd_vel and live walking_speed on the G1 under physics, from a client in another process."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from action_msgs.msg import GoalStatus
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+
+from nodes.conversions import seconds_of, yaw_of
+from sim_interfaces.action import NavigateToPose, Walk
+from sim_interfaces.srv import Reset
+from tests.ros.actions import ready_client, result, send
+from tests.ros.processes import running
+
+pytestmark = pytest.mark.slow
+
+
+def xy(odom: Odometry) -> tuple[float, float]:
+    return odom.pose.pose.position.x, odom.pose.pose.position.y
+
+
+def yaw(odom: Odometry) -> float:
+    o = odom.pose.pose.orientation
+    return yaw_of((o.w, o.x, o.y, o.z))
+
+
+@pytest.fixture(scope="module")
+def g1(client):
+    with running(["bringup", "--robot", "g1", "--rtf", "2.0"]) as process:
+        yield process
+
+
+@pytest.fixture(scope="module")
+def walk(client, g1):
+    return ready_client(client, Walk, "/walk", timeout=90.0)
+
+
+@pytest.fixture()
+def odom(client, g1):
+    recorder = client.record(Odometry, "/odom", keep=100_000)
+    client.wait_for(lambda: recorder.count > 0, 30.0, "/odom")
+    return recorder
+
+
+def reset(client) -> None:
+    assert client.call(Reset, "/sim/reset", Reset.Request()).success
+
+
+def pace(odom_messages: list[Odometry], t0: float, t1: float) -> float:
+    """Mean forward speed [m/s] between sim times t0 and t1, from positions."""
+    window = [m for m in odom_messages if t0 <= seconds_of(m.header.stamp) <= t1]
+    first, last = window[0], window[-1]
+    return math.dist(xy(first), xy(last)) / (seconds_of(last.header.stamp) - seconds_of(first.header.stamp))
+
+
+def test_walk_two_metres_forward_then_half_a_metre_back(client, walk, odom):
+    reset(client)
+    start = xy(odom.latest)
+    sent = send(client, walk, Walk.Goal(distance=2.0, speed=0.3))
+    assert sent.handle.accepted
+    outcome = result(client, sent, timeout=180.0)
+    assert outcome.status == GoalStatus.STATUS_SUCCEEDED, outcome.result.error_msg
+    assert outcome.result.final_distance == pytest.approx(2.0, rel=0.05)
+    moved = math.dist(start, xy(odom.latest))
+    assert moved == pytest.approx(2.0, rel=0.05), "odometry agrees: the base moved 2 m"
+    walked = [f.distance_walked for f in sent.feedback]
+    assert walked[-1] > walked[0] + 1.5 and sent.feedback[-1].steps_taken >= 6
+    assert odom.latest.pose.pose.position.z > 0.6, "still standing"
+
+    back = result(client, send(client, walk, Walk.Goal(distance=-0.5)), timeout=120.0)
+    assert back.result.error_code == Walk.Result.SUCCESS, back.result.error_msg
+    assert back.result.final_distance == pytest.approx(-0.5, rel=0.05)
+
+
+def test_walking_speed_changes_the_pace_mid_walk(client, walk, odom):
+    reset(client)
+    assert client.set_parameter("locomotion", "walking_speed", 0.2)[0]
+    try:
+        sent = send(client, walk, Walk.Goal(distance=5.0))
+        client.wait_for(lambda: sent.feedback and seconds_of(sent.feedback[-1].elapsed) > 5.0, 120.0, "5 s of walking")
+        changed_at = seconds_of(odom.latest.header.stamp)
+        slow = pace(odom.messages(), changed_at - 2.5, changed_at)
+        ok, reason = client.set_parameter("locomotion", "walking_speed", 0.4)
+        assert ok, reason
+        client.wait_for(lambda: seconds_of(odom.latest.header.stamp) > changed_at + 4.0, 120.0, "4 s after the change")
+        fast = pace(odom.messages(), changed_at + 2.0, changed_at + 4.0)
+        assert slow == pytest.approx(0.2, abs=0.05)
+        assert fast == pytest.approx(0.4, abs=0.07), "within 2 s the pace follows the new walking_speed"
+        client.wait_future(sent.handle.cancel_goal_async(), 10.0, "cancel")
+        assert result(client, sent).status == GoalStatus.STATUS_CANCELED
+    finally:
+        client.set_parameter("locomotion", "walking_speed", 0.3)
+
+
+def test_walking_speed_out_of_range_is_refused_with_the_range(client, g1):
+    ok, reason = client.set_parameter("locomotion", "walking_speed", 2.5)
+    assert not ok and "0.6" in reason
+    ok, reason = client.set_parameter("locomotion", "walking_speed", -0.3)
+    assert not ok and "0.05" in reason
+
+
+def test_cmd_vel_turns_the_robot_in_place_by_ninety_degrees(client, odom, g1):
+    reset(client)
+    publisher = client.node.create_publisher(Twist, "/cmd_vel", 10)
+    start_yaw, start_xy = yaw(odom.latest), xy(odom.latest)
+    command = Twist()
+    turned = lambda: abs(math.remainder(yaw(odom.latest) - start_yaw, 2 * math.pi))  # noqa: E731
+    try:
+        def turning() -> bool:
+            # Slow down as the heading approaches 90 degrees, as a client steering by odometry does.
+            remaining = math.radians(90) - turned()
+            command.angular.z = min(0.5, max(0.08, 1.2 * remaining))
+            publisher.publish(command)
+            return remaining <= math.radians(2)
+
+        client.wait_for(turning, 120.0, "a 90 degree turn", poll=0.05)
+    finally:
+        publisher.publish(Twist())
+    stop_time = seconds_of(odom.latest.header.stamp)
+
+    def still() -> bool:
+        publisher.publish(Twist())
+        return seconds_of(odom.latest.header.stamp) > stop_time + 3.0
+
+    client.wait_for(still, 60.0, "the robot to stop", poll=0.05)
+    assert turned() == pytest.approx(math.radians(90), abs=math.radians(10))
+    assert math.dist(start_xy, xy(odom.latest)) < 0.25, "turned in place"
+    assert odom.latest.pose.pose.position.z > 0.6
+    client.node.destroy_publisher(publisher)
+
+
+def test_cancel_stops_the_walk_and_the_robot_stands(client, walk, odom):
+    reset(client)
+    sent = send(client, walk, Walk.Goal(distance=3.0, speed=0.3))
+    client.wait_for(lambda: sent.feedback and sent.feedback[-1].distance_walked > 0.4, 120.0, "the walk to be under way")
+    client.wait_future(sent.handle.cancel_goal_async(), 10.0, "cancel")
+    outcome = result(client, sent)
+    assert outcome.status == GoalStatus.STATUS_CANCELED
+    assert outcome.result.error_code == Walk.Result.CANCELED
+    assert 0.4 < outcome.result.final_distance < 2.0
+    t0 = seconds_of(odom.latest.header.stamp)
+    client.wait_for(lambda: seconds_of(odom.latest.header.stamp) > t0 + 2.0, 60.0, "2 s after the cancel")
+    assert pace(odom.messages(), t0 + 1.0, t0 + 2.0) < 0.03, "standing still"
+    assert odom.latest.pose.pose.position.z > 0.6
+
+
+def test_a_new_walk_preempts_the_running_one(client, walk, odom):
+    reset(client)
+    first = send(client, walk, Walk.Goal(distance=3.0, speed=0.3))
+    client.wait_for(lambda: first.feedback and first.feedback[-1].distance_walked > 0.2, 120.0, "the first walk")
+    second = send(client, walk, Walk.Goal(distance=0.5, speed=0.3))
+    first_outcome = result(client, first)
+    assert first_outcome.status == GoalStatus.STATUS_ABORTED
+    assert first_outcome.result.error_code == Walk.Result.PREEMPTED
+    second_outcome = result(client, second, timeout=120.0)
+    assert second_outcome.result.error_code == Walk.Result.SUCCESS, second_outcome.result.error_msg
+
+
+@pytest.mark.parametrize(
+    "goal",
+    [Walk.Goal(distance=math.nan), Walk.Goal(distance=1e6), Walk.Goal(distance=0.0), Walk.Goal(distance=1.0, speed=-0.2),
+     Walk.Goal(distance=1.0, speed=5.0), Walk.Goal(distance=1.0, timeout=-1.0)],
+    ids=["nan", "absurd-distance", "zero-distance", "negative-speed", "too-fast", "negative-timeout"],
+)
+def test_bad_walk_goals_are_rejected_and_the_node_survives(client, walk, g1, goal):
+    assert not send(client, walk, goal).handle.accepted
+    assert g1.alive() and walk.server_is_ready()
+
+
+def test_bad_navigation_goals_are_rejected(client, g1):
+    navigate = ready_client(client, NavigateToPose, "/navigate_to_pose")
+    goal = NavigateToPose.Goal()
+    goal.pose.pose.position.x = math.nan
+    assert not send(client, navigate, goal).handle.accepted
+    goal = NavigateToPose.Goal()
+    goal.pose.header.frame_id = "mars"
+    assert not send(client, navigate, goal).handle.accepted

@@ -1,0 +1,58 @@
+"""The `sim` command line against a running sim node (parameters, watch) and the arm server (a goal)."""
+
+from __future__ import annotations
+
+import pathlib
+import subprocess
+
+import pytest
+from rosgraph_msgs.msg import Clock
+
+from sim_client.processes import BIN, running
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+
+
+def sim(*args: str, timeout: float = 90.0) -> subprocess.CompletedProcess:
+    return subprocess.run([str(BIN / "sim"), *args], capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def panda(client):
+    args = ["bringup", "--robot", "panda", "--rtf", "2"]
+    with running(args) as process:
+        clock = client.record(Clock, "/clock", keep=5)
+        client.wait_for(lambda: clock.count > 0 or not process.alive(), 60.0, "first /clock of the panda bringup")
+        assert process.alive(), process.output()
+        yield process
+
+
+def test_param_describe_get_set_list(panda):
+    described = sim("param", "describe", "sim", "real_time_factor")
+    assert described.returncode == 0, described.stderr
+    assert "Type: double" in described.stdout and "0.0 .. 1000.0" in described.stdout
+    assert sim("param", "set", "sim", "real_time_factor", "3").returncode == 0  # an integer is sent as a double
+    got = sim("param", "get", "sim", "real_time_factor")
+    assert "3.0" in got.stdout
+    refused = sim("param", "set", "sim", "real_time_factor", "-2")
+    assert refused.returncode == 1 and "out of range" in refused.stdout
+    listed = sim("param", "list", "sim")
+    assert "joint_state_rate" in listed.stdout.split()
+    missing = sim("param", "get", "sim", "no_such_parameter")
+    assert missing.returncode == 2 and "no parameter" in missing.stderr
+    assert sim("param", "set", "sim", "real_time_factor", "2.0").returncode == 0
+
+
+def test_watch_once_shows_sim_time_and_the_base(panda):
+    shown = sim("watch", "--once")
+    assert shown.returncode == 0, shown.stderr
+    assert "sim time" in shown.stdout and "panda_link0" in shown.stdout
+
+
+@pytest.mark.skipif(not (REPO / "nodes" / "arm_server.py").exists(), reason="the arm server is not written yet")
+def test_move_arm_streams_feedback_until_the_result(panda):
+    moved = sim("move-arm", "0.4", "0.1", "0.35")
+    assert moved.returncode == 0, moved.stdout + moved.stderr
+    lines = moved.stdout.splitlines()
+    assert any("position_error=" in line for line in lines), moved.stdout
+    assert "SUCCEEDED (SUCCESS)" in lines[-2] or "SUCCEEDED (SUCCESS)" in moved.stdout

@@ -1,0 +1,123 @@
+"""Scenario runs end to end: real processes over Fast DDS, lock-stepped on sim time, headless."""
+
+from __future__ import annotations
+
+import io
+import json
+import pathlib
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from sim_client.processes import BIN
+from sim_client.scenario import artifacts, schema
+from sim_client.scenario.runner import RunOptions, run
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+
+STAND = """\
+name: stand_short
+robot: g1
+steps:
+  - reset: {}
+    mark: standing
+  - wait: {duration: 1.0}
+expect:
+  - name: never fell
+    measure: {base_height_min: {from: standing}}
+    gte: 0.6
+  - name: pelvis height
+    measure: {base_position: {axis: z}}
+    near: 0.76
+    tol: 0.08
+  - name: one second passed
+    measure: {duration: {from: standing, to: end}}
+    near: 1.0
+    tol: 0.03
+"""
+
+
+def scenario_file(tmp_path: pathlib.Path, text: str, name: str = "case") -> pathlib.Path:
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+def run_quietly(path: pathlib.Path, out: pathlib.Path, **options) -> object:
+    return run(schema.load(path), RunOptions(out=out, quiet=True, **options), stream=io.StringIO())
+
+
+def test_a_sim_only_scenario_runs_headless_with_a_json_report_and_an_mcap(tmp_path):
+    result = run_quietly(schema.find("reset_and_stand_panda"), tmp_path, record=True)
+    assert result.passed, result.report
+    report = json.loads((result.folder / "report.json").read_text())
+    assert report["passed"] is True and report["robot"] == "panda" and report["mode"] == "lock-step"
+    assert report["sim_time_s"] == pytest.approx(2.0, abs=0.1)
+    assert report["wall_time_s"] > 0 and report["wall_per_sim"] > 0
+    names = [e["name"] for e in report["expectations"]]
+    assert "box_1 rests at its home position" in names
+    assert all(e["passed"] for e in report["expectations"])
+    measured = {e["name"]: e["measured"] for e in report["expectations"]}
+    assert measured["elbow at the home angle"] == pytest.approx(-2.356, abs=0.02)
+
+    counts = artifacts.read_mcap_topics(pathlib.Path(report["artifacts"]["mcap"]))
+    for topic in ("/clock", "/joint_states", "/odom", "/objects", "/tf"):
+        assert counts.get(topic, 0) > 0, f"{topic} missing from the MCAP: {counts}"
+    # 2 s of sim time at the sim's default rates (100 Hz clock, 200 Hz joint states)
+    assert counts["/clock"] >= 190 and counts["/joint_states"] >= 380
+
+
+def test_a_failing_expectation_fails_the_run_and_is_named(tmp_path):
+    text = STAND.replace("near: 0.76\n    tol: 0.08", "near: 1.50\n    tol: 0.01")
+    path = scenario_file(tmp_path, text, "fails")
+    completed = subprocess.run(
+        [str(BIN / "scenario"), "run", str(path), "--out", str(tmp_path / "runs")],
+        capture_output=True, text=True, timeout=180,
+    )
+    assert completed.returncode == 1, completed.stdout + completed.stderr
+    assert "FAIL  pelvis height: measured 0.76" in completed.stdout
+    assert "PASS  never fell" in completed.stdout
+    assert "stand_short: FAILED" in completed.stdout
+
+
+def test_the_same_scenario_twice_gives_the_same_measured_values(tmp_path):
+    path = scenario_file(tmp_path, STAND, "twice")
+    first = run_quietly(path, tmp_path / "a")
+    second = run_quietly(path, tmp_path / "b")
+    assert first.passed and second.passed
+    a = {v.name: v.measured for v in first.verdicts}
+    b = {v.name: v.measured for v in second.verdicts}
+    assert a.keys() == b.keys()
+    for name in a:
+        assert a[name] == pytest.approx(b[name], abs=1e-9), name
+
+
+def test_an_unknown_scenario_name_is_a_usage_error():
+    completed = subprocess.run([str(BIN / "scenario"), "run", "no_such_scenario"], capture_output=True, text=True, timeout=60)
+    assert completed.returncode == 2
+    assert "no scenario of that name" in completed.stderr
+
+
+# ----- every shipped scenario -------------------------------------------------------------------
+SERVER_MODULES = {"walk": "locomotion_server", "navigate": "locomotion_server", "move_arm": "arm_server",
+                  "pick_place": "arm_server"}
+
+
+def _params():
+    for path in schema.all_files():
+        scenario = schema.load(path)
+        marks = [] if "fast" in scenario.tags else [pytest.mark.slow]
+        yield pytest.param(path, id=path.stem, marks=marks)
+
+
+@pytest.mark.parametrize("path", list(_params()))
+def test_every_shipped_scenario_passes(tmp_path, path):
+    scenario = schema.load(path)
+    missing = sorted({SERVER_MODULES[a] for a in scenario.actions if not (REPO / "nodes" / f"{SERVER_MODULES[a]}.py").exists()})
+    if missing:
+        pytest.skip(f"needs nodes/{', '.join(missing)}.py, which is not written yet")
+    result = run_quietly(path, tmp_path)
+    failed = [v.line_text() for v in result.verdicts if not v.passed] + result.failures
+    assert result.passed, "\n".join(failed)
