@@ -7,7 +7,7 @@ STAMPS := $(VENV)/.stamps
 INTERFACE_FILES := $(shell find interfaces -type f)
 export MUJOCO_GL ?= egl
 
-.PHONY: setup demo test test-fast bench clean
+.PHONY: setup demo test test-fast bench bench-sim bench-walk bench-arm bench-nav clean
 
 setup: $(STAMPS)/project
 
@@ -34,8 +34,19 @@ test: setup
 test-fast: setup
 	$(PY) -m pytest -m "not slow"
 
-bench: setup
+bench: bench-sim bench-walk bench-arm bench-nav  ## every benchmark; figures are ratios measured in one run
+
+bench-sim: setup
 	$(PY) benchmarks/sim_bench.py
+
+bench-walk: setup
+	$(PY) benchmarks/walk_bench.py
+
+bench-arm: setup
+	$(PY) benchmarks/arm_bench.py
+
+bench-nav: setup
+	$(PY) benchmarks/nav_bench.py
 
 clean:
 	rm -rf $(VENV) build
