@@ -75,7 +75,7 @@ class Pacer:
         """Record that the simulation reached ``sim_time`` now (for the achieved factor)."""
         now = self._clock()
         samples = self._samples
-        if samples and now - samples[-1][0] < self.SAMPLE_SPACING_S:
+        if len(samples) >= 2 and now - samples[-2][0] < self.SAMPLE_SPACING_S:
             samples[-1] = (now, sim_time)  # keep the window short: overwrite the newest sample
             return
         samples.append((now, sim_time))

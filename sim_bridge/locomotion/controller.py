@@ -127,9 +127,24 @@ class WalkingController:
 
     @property
     def active(self) -> bool:
-        return self._phase not in (_Phase.IDLE, _Phase.FALLEN) or (
-            self._phase == _Phase.IDLE and bool(np.any(self._target != 0.0))
-        )
+        # Called every control step by the simulation: plain comparisons only.
+        phase = self._phase
+        if phase is _Phase.IDLE:
+            return self._has_target
+        return phase is not _Phase.FALLEN
+
+    @property
+    def _has_target(self) -> bool:
+        return self._target_nonzero
+
+    @property
+    def _target(self) -> np.ndarray:
+        return self._target_value
+
+    @_target.setter
+    def _target(self, value: np.ndarray) -> None:
+        self._target_value = value
+        self._target_nonzero = bool(np.any(value != 0.0))
 
     def set_velocity_command(self, vx: float, vy: float, wz: float) -> None:
         """Command a walking velocity in the base heading frame; zero stops and stands with the feet together.

@@ -97,6 +97,15 @@ def test_pacer_waits_for_wall_time_and_measures_the_achieved_factor():
         pacer.set_factor(-1.0)
 
 
+def test_pacer_measures_the_factor_from_many_closely_spaced_samples():
+    clock = FakeClock()
+    pacer = Pacer(0.0, clock=clock)
+    for i in range(1000):  # 1 ms of wall per 0.05 s of sim: 50x
+        clock.now = 100.0 + 0.001 * i
+        pacer.record(0.05 * i)
+    assert pacer.achieved_factor() == pytest.approx(50.0, rel=0.01)
+
+
 def test_pacer_reanchors_instead_of_bursting_after_a_stall():
     clock = FakeClock()
     pacer = Pacer(1.0, clock=clock)
