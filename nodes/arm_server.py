@@ -14,7 +14,7 @@ import sys
 
 import numpy as np
 from geometry_msgs.msg import Point, PoseStamped
-from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action import ActionServer, CancelResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
@@ -23,7 +23,7 @@ from sensor_msgs.msg import JointState
 from nav_msgs.msg import Odometry
 
 import robot_models
-from nodes.common import ActiveGoal, GoalOwnership, GoalRejected, Latest, finish_goal, spin_server
+from nodes.common import ActiveGoal, GoalOwnership, GoalRejected, Latest, finish_goal, goal_validator, spin_server
 from nodes.conversions import duration_msg, pose_from_msg, pose_msg, seconds_of
 from nodes.parameters import ParameterSpec, declare
 from sim_bridge.arm import ArmKinematics
@@ -83,12 +83,12 @@ class ArmServer(Node):
         self.create_subscription(Odometry, "/odom", self._odom.put, 10, callback_group=group)
         self._move_server = ActionServer(
             self, MoveArm, "/move_arm", execute_callback=self._execute_move,
-            goal_callback=self._accept_move, handle_accepted_callback=self._start,
+            goal_callback=goal_validator(self, "MoveArm", self._validate_move), handle_accepted_callback=self._start,
             cancel_callback=lambda _goal: CancelResponse.ACCEPT, callback_group=group,
         )
         self._pick_server = ActionServer(
             self, PickPlace, "/pick_place", execute_callback=self._execute_pick,
-            goal_callback=self._accept_pick, handle_accepted_callback=self._start,
+            goal_callback=goal_validator(self, "PickPlace", self._validate_pick), handle_accepted_callback=self._start,
             cancel_callback=lambda _goal: CancelResponse.ACCEPT, callback_group=group,
         )
         self.create_service(ComputeIK, "~/compute_ik", self._compute_ik, callback_group=group)
@@ -128,14 +128,6 @@ class ArmServer(Node):
             return _compose(base, Pose(pose.position, quat))
         raise GoalRejected(f"unknown frame {frame!r}; allowed: world (or empty), odom, {self.robot.base_body}")
 
-    def _accept_move(self, goal: MoveArm.Goal) -> GoalResponse:
-        try:
-            self._validate_move(goal)
-        except GoalRejected as reason:
-            self.get_logger().warning(f"MoveArm goal rejected: {reason}")
-            return GoalResponse.REJECT
-        return GoalResponse.ACCEPT
-
     def _validate_move(self, goal: MoveArm.Goal) -> tuple[str, Pose]:
         numbers = {"position_tolerance": goal.position_tolerance, "orientation_tolerance": goal.orientation_tolerance,
                    "max_velocity_scaling": goal.max_velocity_scaling, "timeout": goal.timeout}
@@ -152,14 +144,6 @@ class ArmServer(Node):
             raise GoalRejected(f"timeout must be >= 0 s (0 = default), got {goal.timeout}")
         arm = self._arm_name(goal.end_effector)
         return arm, self._target_in_world(goal.target, goal.orientation_tolerance == 0.0)
-
-    def _accept_pick(self, goal: PickPlace.Goal) -> GoalResponse:
-        try:
-            self._validate_pick(goal)
-        except GoalRejected as reason:
-            self.get_logger().warning(f"PickPlace goal rejected: {reason}")
-            return GoalResponse.REJECT
-        return GoalResponse.ACCEPT
 
     def _validate_pick(self, goal: PickPlace.Goal) -> tuple[str, str, Point]:
         if not self.robot.objects:
@@ -257,17 +241,10 @@ class ArmServer(Node):
         within = 0
         state = first
         while True:
-            if owner.preempted.is_set():
-                self._fill_move(result, state)
-                return self._finish(goal_handle, result, MoveArm.Result.PREEMPTED, "preempted by a newer goal on this arm", abort=True)
-            if goal_handle.is_cancel_requested:
-                self._hold(arm, owner.seq)
-                self._fill_move(result, state)
-                return self._finish(goal_handle, result, MoveArm.Result.CANCELED, "canceled: the arm holds where it is", cancel=True)
-            if state.goal_seq != owner.seq:
-                self._fill_move(result, state)
-                return self._finish(goal_handle, result, MoveArm.Result.SIM_FAULT,
-                                    "the simulation was reset during the move", abort=True)
+            self._fill_move(result, state)
+            interrupted = self._interrupted(goal_handle, arm, owner, state, result, MoveArm.Result)
+            if interrupted is not None:
+                return interrupted
             now = seconds_of(state.header.stamp)
             if state.unreachable:
                 self._fill_move(result, state)
@@ -296,6 +273,17 @@ class ArmServer(Node):
                 goal_handle.publish_feedback(feedback)
             self._arm_state.wait_next(1.0)
             state = self._arm_state.get(arm) or state
+
+    def _interrupted(self, goal_handle: ServerGoalHandle, arm: str, owner: ActiveGoal, state: ArmState, result, codes):
+        """End the goal if it was preempted, canceled (the arm then holds) or the sim was reset; else None."""
+        if owner.preempted.is_set():
+            return self._finish(goal_handle, result, codes.PREEMPTED, "preempted by a newer goal on this arm", abort=True)
+        if goal_handle.is_cancel_requested:
+            self._hold(arm, owner.seq)
+            return self._finish(goal_handle, result, codes.CANCELED, "canceled: the arm holds where it is", cancel=True)
+        if state.goal_seq != owner.seq:
+            return self._finish(goal_handle, result, codes.SIM_FAULT, "the simulation was reset during the goal", abort=True)
+        return None
 
     @staticmethod
     def _fill_move(result: MoveArm.Result, state: ArmState) -> None:
@@ -341,16 +329,10 @@ class ArmServer(Node):
         last_feedback = -math.inf
         last_stage = -1  # every stage change is reported, whatever the feedback rate
         while True:
-            if owner.preempted.is_set():
-                self._fill_pick(result, state)
-                return self._finish(goal_handle, result, PickPlace.Result.PREEMPTED, "preempted by a newer goal on this arm", abort=True)
-            if goal_handle.is_cancel_requested:
-                self._hold(arm, owner.seq)
-                self._fill_pick(result, state)
-                return self._finish(goal_handle, result, PickPlace.Result.CANCELED, "canceled: the arm holds where it is", cancel=True)
-            if state.goal_seq != owner.seq:
-                self._fill_pick(result, state)
-                return self._finish(goal_handle, result, PickPlace.Result.SIM_FAULT, "the simulation was reset during the task", abort=True)
+            self._fill_pick(result, state)
+            interrupted = self._interrupted(goal_handle, arm, owner, state, result, PickPlace.Result)
+            if interrupted is not None:
+                return interrupted
             now = seconds_of(state.header.stamp)
             if state.done or now - last_feedback >= feedback_period or state.stage != last_stage:
                 last_feedback, last_stage = now, state.stage

@@ -118,6 +118,21 @@ class GoalOwnership:
                 del self._owners[resource]
 
 
+def goal_validator(node: Node, action_name: str, validate: Callable[[Any], object]) -> Callable[[Any], Any]:
+    """A goal callback: accept when ``validate(goal)`` passes, reject (logging the reason) on GoalRejected."""
+    from rclpy.action import GoalResponse
+
+    def accept(goal: Any) -> GoalResponse:
+        try:
+            validate(goal)
+        except GoalRejected as reason:
+            node.get_logger().warning(f"{action_name} goal rejected: {reason}")
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
+    return accept
+
+
 def finish_goal(node: Node, goal_handle: ServerGoalHandle, result: Any, code: int, message: str,
                 abort: bool = False, cancel: bool = False) -> Any:
     """Set a result's ``error_code``/``error_msg``, end the goal in the right state, log it."""

@@ -17,14 +17,14 @@ import numpy as np
 from geometry_msgs.msg import PoseStamped, Twist
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Odometry
-from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action import ActionServer, CancelResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 
 import robot_models
-from nodes.common import ActiveGoal, GoalOwnership, GoalRejected, Latest, finish_goal, spin_server
+from nodes.common import ActiveGoal, GoalOwnership, GoalRejected, Latest, finish_goal, goal_validator, spin_server
 from nodes.conversions import duration_msg, grid_from_msg, seconds_of, yaw_of
 from nodes.parameters import ParameterSpec, declare
 from sim_bridge.navigation import NoPathError, PathFollower, plan_path
@@ -78,13 +78,13 @@ class LocomotionServer(Node):
         self.create_subscription(OccupancyGridMsg, "/map", self._map.put,
                                  QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL), callback_group=group)
         self._walk_server = ActionServer(
-            self, Walk, "/walk", execute_callback=self._execute_walk, goal_callback=self._accept_walk,
+            self, Walk, "/walk", execute_callback=self._execute_walk, goal_callback=goal_validator(self, "Walk", self._validate_walk),
             handle_accepted_callback=lambda handle: handle.execute(),
             cancel_callback=lambda _goal: CancelResponse.ACCEPT, callback_group=group,
         )
         self._nav_server = ActionServer(
             self, NavigateToPose, "/navigate_to_pose", execute_callback=self._execute_navigate,
-            goal_callback=self._accept_navigate, handle_accepted_callback=lambda handle: handle.execute(),
+            goal_callback=goal_validator(self, "NavigateToPose", self._validate_navigate), handle_accepted_callback=lambda handle: handle.execute(),
             cancel_callback=lambda _goal: CancelResponse.ACCEPT, callback_group=group,
         )
         self.get_logger().info(f"serving /walk and /navigate_to_pose for {robot}")
@@ -153,14 +153,6 @@ class LocomotionServer(Node):
         return None
 
     # ----- Walk --------------------------------------------------------------------------
-    def _accept_walk(self, goal: Walk.Goal) -> GoalResponse:
-        try:
-            self._validate_walk(goal)
-        except GoalRejected as reason:
-            self.get_logger().warning(f"Walk goal rejected: {reason}")
-            return GoalResponse.REJECT
-        return GoalResponse.ACCEPT
-
     def _validate_walk(self, goal: Walk.Goal) -> None:
         values = {"distance": goal.distance, "speed": goal.speed, "timeout": goal.timeout}
         bad = [name for name, value in values.items() if not math.isfinite(value)]
@@ -275,14 +267,6 @@ class LocomotionServer(Node):
         result.final_pose = PoseStamped(header=odom.header, pose=odom.pose.pose)
 
     # ----- NavigateToPose ----------------------------------------------------------------
-    def _accept_navigate(self, goal: NavigateToPose.Goal) -> GoalResponse:
-        try:
-            self._validate_navigate(goal)
-        except GoalRejected as reason:
-            self.get_logger().warning(f"NavigateToPose goal rejected: {reason}")
-            return GoalResponse.REJECT
-        return GoalResponse.ACCEPT
-
     def _validate_navigate(self, goal: NavigateToPose.Goal) -> tuple[float, float, float]:
         p, o = goal.pose.pose.position, goal.pose.pose.orientation
         if not all(math.isfinite(v) for v in (p.x, p.y, p.z, o.x, o.y, o.z, o.w)):

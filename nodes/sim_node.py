@@ -13,6 +13,7 @@ import math
 import signal
 import sys
 import threading
+import traceback
 from dataclasses import dataclass
 
 import numpy as np
@@ -262,12 +263,22 @@ class SimNode(LifecycleNode):
         self.plugins.before_step(now)
         try:
             sim.step_physics(steps)
-        except SimulationFaultError as error:
-            self._fault_count += 1
-            self.get_logger().error(f"{error}; resetting to keyframe {sim.robot.default_keyframe!r}")
-            sim.reset()
-            self.plugins.on_fault(str(error))
+        except Exception as error:  # noqa: BLE001 - the physics thread must survive a controller failure
+            self._recover(error)
         self._publish_due(sim.time)
+
+    def _recover(self, error: Exception) -> None:
+        """After the physics diverged or a controller failed: log why, reset to the keyframe."""
+        assert self.sim is not None and self.plugins is not None
+        self._fault_count += 1
+        if isinstance(error, SimulationFaultError):
+            self.get_logger().error(f"{error}; resetting to keyframe {self.sim.robot.default_keyframe!r}")
+        else:
+            self.get_logger().error(
+                f"in-loop controller failed: {''.join(traceback.format_exception(error))}"
+                f"resetting to keyframe {self.sim.robot.default_keyframe!r}")
+        self.sim.reset()
+        self.plugins.on_fault(str(error))
 
     def _publish_due(self, now: float, force: bool = False) -> None:
         sim = self.sim
@@ -397,8 +408,15 @@ class SimNode(LifecycleNode):
                 response.message = f"steps must be in [1, {MAX_STEP_REQUEST}], got {request.steps}"
             else:
                 target = self.sim.time + request.steps * self.sim.control_timestep - 1e-9
-                while self.sim.time < target:
-                    self._advance_to_next_event_bounded(target)
+                try:
+                    while self.sim.time < target:
+                        self._advance_to_next_event_bounded(target)
+                except Exception as error:  # noqa: BLE001 - a failed step is answered, never left hanging
+                    self._recover(error)
+                    response.success = False
+                    response.message = f"{error}; the simulation was reset"
+                    response.sim_time = self.sim.time
+                    return response
                 response.success = True
                 response.message = f"stepped {request.steps} control steps"
             response.sim_time = self.sim.time

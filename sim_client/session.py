@@ -75,6 +75,7 @@ class RosSession:
         self._thread = threading.Thread(target=self._spin, name=f"{name}-executor", daemon=True)
         self._thread.start()
         self._parameter_clients: dict[str, AsyncParameterClient] = {}
+        self._service_clients: dict[tuple[Any, str], Any] = {}
 
     def _spin(self) -> None:
         try:
@@ -124,13 +125,18 @@ class RosSession:
         return recorder
 
     def call(self, srv_type: Any, name: str, request: Any, timeout: float = 10.0) -> Any:
-        """Call a service and return its response (waits for the service first)."""
-        client = self.node.create_client(srv_type, name)
-        try:
-            self.wait_for(client.service_is_ready, timeout, f"service {name}")
-            return self.wait_future(client.call_async(request), timeout, f"response of {name}")
-        finally:
-            self.node.destroy_client(client)
+        """Call a service and return its response (waits for the service first).
+
+        Clients are kept per service: a client created just before its call can lose the
+        response (the server's reply side may not have matched it yet), and discovery per call
+        costs time.
+        """
+        key = (srv_type, name)
+        client = self._service_clients.get(key)
+        if client is None:
+            client = self._service_clients[key] = self.node.create_client(srv_type, name)
+        self.wait_for(client.service_is_ready, timeout, f"service {name}")
+        return self.wait_future(client.call_async(request), timeout, f"response of {name}")
 
     def parameters(self, node_name: str) -> AsyncParameterClient:
         """Client of a node's standard parameter services (what ``ros2 param`` calls)."""
