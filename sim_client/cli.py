@@ -127,7 +127,7 @@ def _watch(options: argparse.Namespace) -> int:
     from std_msgs.msg import Float64
 
     from sim_client.actions import ACTION_CLIENTS
-    from sim_client.scenario.artifacts import stamp_s, yaw_of
+    from sim_client.scenario.artifacts import yaw_of
     from sim_client.scenario.runner import _feedback_summary
     from sim_client.session import RosSession
 
