@@ -3,11 +3,12 @@ and a small latest-message box that execute callbacks can wait on with a deadlin
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import signal
 import sys
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any, Generic, TypeVar
 
@@ -116,6 +117,15 @@ class GoalOwnership:
         with self._lock:
             if self._owners.get(resource) is owner:
                 del self._owners[resource]
+
+    @contextlib.contextmanager
+    def owned(self, resource: str) -> Iterator[ActiveGoal]:
+        """Claim ``resource`` for the duration of a ``with`` block (preempting its previous goal)."""
+        owner = self.claim(resource)
+        try:
+            yield owner
+        finally:
+            self.release(resource, owner)
 
 
 def goal_validator(node: Node, action_name: str, validate: Callable[[Any], object]) -> Callable[[Any], Any]:

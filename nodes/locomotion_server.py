@@ -169,11 +169,8 @@ class LocomotionServer(Node):
     def _execute_walk(self, goal_handle: ServerGoalHandle) -> Walk.Result:
         goal: Walk.Goal = goal_handle.request
         result = Walk.Result()
-        owner = self._ownership.claim(LEGS)
-        try:
+        with self._ownership.owned(LEGS) as owner:
             return self._supervise_walk(goal_handle, goal, owner, result)
-        finally:
-            self._ownership.release(LEGS, owner)
 
     def _supervise_walk(self, goal_handle: ServerGoalHandle, goal: Walk.Goal, owner: ActiveGoal, result: Walk.Result) -> Walk.Result:
         inputs = self._wait_inputs()
@@ -291,11 +288,8 @@ class LocomotionServer(Node):
     def _execute_navigate(self, goal_handle: ServerGoalHandle) -> NavigateToPose.Result:
         goal: NavigateToPose.Goal = goal_handle.request
         result = NavigateToPose.Result()
-        owner = self._ownership.claim(LEGS)
-        try:
+        with self._ownership.owned(LEGS) as owner:
             return self._supervise_navigate(goal_handle, goal, owner, result)
-        finally:
-            self._ownership.release(LEGS, owner)
 
     def _supervise_navigate(self, goal_handle: ServerGoalHandle, goal: NavigateToPose.Goal, owner: ActiveGoal,
                             result: NavigateToPose.Result) -> NavigateToPose.Result:
