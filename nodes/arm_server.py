@@ -195,15 +195,19 @@ class ArmServer(Node):
     def _hold(self, arm: str, seq: int) -> None:
         self._send(ArmCommand(arm=arm, goal_seq=seq, mode=ArmCommand.HOLD, gripper_width=-1.0))
 
-    def _wait_state(self, arm: str, seq: int, timeout_s: float) -> ArmState | None:
-        """The first state that reflects command ``seq`` (None if /sim did not answer)."""
-        deadline = timeout_s
-        while deadline > 0.0:
+    def _wait_state(self, arm: str, seq: int, timeout_s: float, command: ArmCommand) -> ArmState | None:
+        """The first state that reflects command ``seq`` (None if /sim did not answer).
+
+        The command is sent again every second until /sim confirms it: a command published
+        before discovery matched this publisher with /sim's subscription is lost.
+        """
+        for tick in range(1, int(timeout_s / 0.1) + 1):
             state = self._arm_state.get(arm)
             if state is not None and state.goal_seq == seq:
                 return state
             self._arm_state.wait_next(0.1)
-            deadline -= 0.1
+            if tick % 10 == 0:
+                self._send(command)
         return None
 
     # ----- MoveArm -----------------------------------------------------------------------
@@ -224,13 +228,13 @@ class ArmServer(Node):
         command.target = pose_msg(target)
         self._send(command)
         try:
-            return self._supervise_move(goal_handle, goal, arm, owner, target, timeout, result)
+            return self._supervise_move(goal_handle, goal, arm, owner, target, timeout, result, command)
         finally:
             self._ownership.release(arm, owner)
 
     def _supervise_move(self, goal_handle: ServerGoalHandle, goal: MoveArm.Goal, arm: str, owner: ActiveGoal,
-                        target: Pose, timeout: float, result: MoveArm.Result) -> MoveArm.Result:
-        first = self._wait_state(arm, owner.seq, ACK_TIMEOUT_S)
+                        target: Pose, timeout: float, result: MoveArm.Result, command: ArmCommand) -> MoveArm.Result:
+        first = self._wait_state(arm, owner.seq, ACK_TIMEOUT_S, command)
         if first is None:
             return self._finish(goal_handle, result, MoveArm.Result.SIM_FAULT,
                                 "no answer from /sim on /sim/arm_state: is the sim node running?", abort=True)
@@ -314,13 +318,13 @@ class ArmServer(Node):
         )
         self._send(command)
         try:
-            return self._supervise_pick(goal_handle, arm, owner, place, timeout, result)
+            return self._supervise_pick(goal_handle, arm, owner, place, timeout, result, command)
         finally:
             self._ownership.release(arm, owner)
 
     def _supervise_pick(self, goal_handle: ServerGoalHandle, arm: str, owner: ActiveGoal, place: Point,
-                        timeout: float, result: PickPlace.Result) -> PickPlace.Result:
-        state = self._wait_state(arm, owner.seq, ACK_TIMEOUT_S)
+                        timeout: float, result: PickPlace.Result, command: ArmCommand) -> PickPlace.Result:
+        state = self._wait_state(arm, owner.seq, ACK_TIMEOUT_S, command)
         if state is None:
             return self._finish(goal_handle, result, PickPlace.Result.SIM_FAULT,
                                 "no answer from /sim on /sim/arm_state: is the sim node running?", abort=True)
