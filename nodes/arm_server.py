@@ -23,7 +23,7 @@ from sensor_msgs.msg import JointState
 from nav_msgs.msg import Odometry
 
 import robot_models
-from nodes.common import ActiveGoal, GoalOwnership, GoalRejected, Latest, finish_goal, goal_validator, spin_server
+from nodes.common import ActiveGoal, GoalOwnership, GoalRejected, Latest, finish_goal, goal_validator, guarded, spin_server
 from nodes.conversions import duration_msg, pose_from_msg, pose_msg, seconds_of
 from nodes.parameters import ParameterSpec, declare
 from sim_bridge.arm import ArmKinematics
@@ -82,12 +82,12 @@ class ArmServer(Node):
         self.create_subscription(JointState, "/joint_states", self._joints.put, 10, callback_group=group)
         self.create_subscription(Odometry, "/odom", self._odom.put, 10, callback_group=group)
         self._move_server = ActionServer(
-            self, MoveArm, "/move_arm", execute_callback=self._execute_move,
+            self, MoveArm, "/move_arm", execute_callback=guarded(self, MoveArm, self._execute_move),
             goal_callback=goal_validator(self, "MoveArm", self._validate_move), handle_accepted_callback=self._start,
             cancel_callback=lambda _goal: CancelResponse.ACCEPT, callback_group=group,
         )
         self._pick_server = ActionServer(
-            self, PickPlace, "/pick_place", execute_callback=self._execute_pick,
+            self, PickPlace, "/pick_place", execute_callback=guarded(self, PickPlace, self._execute_pick),
             goal_callback=goal_validator(self, "PickPlace", self._validate_pick), handle_accepted_callback=self._start,
             cancel_callback=lambda _goal: CancelResponse.ACCEPT, callback_group=group,
         )

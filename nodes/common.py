@@ -8,6 +8,7 @@ import itertools
 import signal
 import sys
 import threading
+import traceback
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any, Generic, TypeVar
@@ -160,6 +161,27 @@ def finish_goal(node: Node, goal_handle: ServerGoalHandle, result: Any, code: in
     else:
         node.get_logger().warning(text)
     return result
+
+
+def guarded(node: Node, action_type: Any, execute: Callable[[ServerGoalHandle], Any]) -> Callable[[ServerGoalHandle], Any]:
+    """An execute callback that ends its goal ABORTED with SIM_FAULT and the reason if ``execute`` raises.
+
+    Without it, rclpy logs the exception and aborts the goal with an empty result, and the
+    client learns nothing about why.
+    """
+
+    def execute_guarded(goal_handle: ServerGoalHandle) -> Any:
+        try:
+            return execute(goal_handle)
+        except Exception as error:  # noqa: BLE001 - reported to the client, logged with its traceback
+            node.get_logger().error(f"{action_type.__name__} goal failed: {''.join(traceback.format_exception(error))}")
+            result = action_type.Result()
+            if goal_handle.is_active:
+                return finish_goal(node, goal_handle, result, action_type.Result.SIM_FAULT,
+                                   f"internal error in /{node.get_name()}: {type(error).__name__}: {error}", abort=True)
+            return result
+
+    return execute_guarded
 
 
 def spin_server(node_factory: Callable[[str, list[Parameter]], Node], node_name: str, args: list[str] | None) -> int:

@@ -24,7 +24,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 
 import robot_models
-from nodes.common import ActiveGoal, GoalOwnership, GoalRejected, Latest, finish_goal, goal_validator, spin_server
+from nodes.common import ActiveGoal, GoalOwnership, GoalRejected, Latest, finish_goal, goal_validator, guarded, spin_server
 from nodes.conversions import duration_msg, grid_from_msg, seconds_of, yaw_of
 from nodes.parameters import ParameterSpec, declare
 from sim_bridge.navigation import NoPathError, PathFollower, plan_path
@@ -41,6 +41,17 @@ FALL_HEIGHT_M = 0.45
 MAX_CORRECTIONS = 2  # short, slow walks after the first stop to land within distance_tolerance
 CORRECTION_SPEED = 0.1  # [m/s]
 WORLD_FRAMES = ("", "world", "odom", "map")
+FRESH_START_S = 1.0  # a reset seen this soon after a goal began restarts the goal from the new pose [s of sim time]
+FRESH_START_M = 0.1  # ... provided the walk had not moved farther than this [m]
+MAX_RESTARTS = 3
+
+
+class _ResetAtStart(Exception):
+    """/sim was reset just before the goal began: odometry from before the reset reached this node first.
+
+    Messages published before a reset can still sit in this node's queue when the goal arrives, so the
+    first "fresh" odometry may predate the reset. The goal starts over from the pose after the reset.
+    """
 
 PARAMETERS = (
     ParameterSpec("walking_speed", 0.3, "pace of Walk and NavigateToPose [m/s]; changes apply to running goals", 0.05, 0.6),
@@ -56,6 +67,24 @@ PARAMETERS = (
     ParameterSpec("distance_tolerance", 0.015, "Walk corrects (slowly) when it stopped farther than this from the goal [m]", 0.005, 0.5),
     ParameterSpec("replan_distance", 0.6, "NavigateToPose replans when this far off the path [m]", 0.2, 3.0),
 )
+
+
+class StepCounter:
+    """Steps taken since a goal began, from the controller's running count.
+
+    The count restarts at 0 when /sim is reset, and a count from before a reset can still
+    arrive after the goal began; a drop of the count is taken as such a restart.
+    """
+
+    def __init__(self) -> None:
+        self._last: int | None = None
+        self.total = 0
+
+    def update(self, count: int) -> int:
+        if self._last is not None:
+            self.total += count - self._last if count >= self._last else count
+        self._last = count
+        return self.total
 
 
 class LocomotionServer(Node):
@@ -78,12 +107,12 @@ class LocomotionServer(Node):
         self.create_subscription(OccupancyGridMsg, "/map", self._map.put,
                                  QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL), callback_group=group)
         self._walk_server = ActionServer(
-            self, Walk, "/walk", execute_callback=self._execute_walk, goal_callback=goal_validator(self, "Walk", self._validate_walk),
+            self, Walk, "/walk", execute_callback=guarded(self, Walk, self._execute_walk), goal_callback=goal_validator(self, "Walk", self._validate_walk),
             handle_accepted_callback=lambda handle: handle.execute(),
             cancel_callback=lambda _goal: CancelResponse.ACCEPT, callback_group=group,
         )
         self._nav_server = ActionServer(
-            self, NavigateToPose, "/navigate_to_pose", execute_callback=self._execute_navigate,
+            self, NavigateToPose, "/navigate_to_pose", execute_callback=guarded(self, NavigateToPose, self._execute_navigate),
             goal_callback=goal_validator(self, "NavigateToPose", self._validate_navigate), handle_accepted_callback=lambda handle: handle.execute(),
             cancel_callback=lambda _goal: CancelResponse.ACCEPT, callback_group=group,
         )
@@ -121,6 +150,12 @@ class LocomotionServer(Node):
         odom = self._odom.get()
         assert odom is not None
         return odom
+
+    @staticmethod
+    def _raise_if_fresh(elapsed_s: float, moved_m: float) -> None:
+        """On a reset seen at a goal's very start, raise :class:`_ResetAtStart` (the goal starts over)."""
+        if elapsed_s <= FRESH_START_S and moved_m <= FRESH_START_M:
+            raise _ResetAtStart()
 
     @staticmethod
     def _fallen(odom: Odometry, state: LocomotionState | None) -> str:
@@ -170,7 +205,13 @@ class LocomotionServer(Node):
         goal: Walk.Goal = goal_handle.request
         result = Walk.Result()
         with self._ownership.owned(LEGS) as owner:
-            return self._supervise_walk(goal_handle, goal, owner, result)
+            for _ in range(MAX_RESTARTS):
+                try:
+                    return self._supervise_walk(goal_handle, goal, owner, result)
+                except _ResetAtStart:
+                    self.get_logger().info("the sim was reset as the walk began; starting over from the new pose")
+            return finish_goal(self, goal_handle, result, Walk.Result.SIM_FAULT,
+                               "the simulation kept being reset as the walk began", abort=True)
 
     def _supervise_walk(self, goal_handle: ServerGoalHandle, goal: Walk.Goal, owner: ActiveGoal, result: Walk.Result) -> Walk.Result:
         inputs = self._wait_inputs()
@@ -182,7 +223,8 @@ class LocomotionServer(Node):
         heading = yaw_of(_quat_wxyz(odom))
         forward = np.array([math.cos(heading), math.sin(heading)])
         start_time = seconds_of(odom.header.stamp)
-        start_steps = state.steps_taken
+        steps = StepCounter()
+        steps.update(state.steps_taken)
         sign = 1.0 if goal.distance > 0 else -1.0
         speed0 = goal.speed or self._param("walking_speed")
         timeout = goal.timeout or (abs(goal.distance) / speed0 * 2.5 + 10.0)
@@ -243,13 +285,14 @@ class LocomotionServer(Node):
                 last_feedback = now
                 state = self._state.get()
                 feedback = Walk.Feedback(distance_walked=walked, current_speed=odom.twist.twist.linear.x,
-                                         steps_taken=int((state.steps_taken if state else start_steps) - start_steps),
+                                         steps_taken=steps.update(state.steps_taken) if state else steps.total,
                                          percent_complete=float(np.clip(100.0 * walked / goal.distance, 0.0, 100.0)))
                 feedback.elapsed = duration_msg(now - start_time)
                 goal_handle.publish_feedback(feedback)
             previous, odom = odom, self._next_odom()
             if self._jumped(previous, odom):
                 self._command(0.0)
+                self._raise_if_fresh(now - start_time, abs(walked))
                 return finish_goal(self, goal_handle, result, Walk.Result.SIM_FAULT,
                                    "the simulation was reset during the walk", abort=True)
 
@@ -289,7 +332,13 @@ class LocomotionServer(Node):
         goal: NavigateToPose.Goal = goal_handle.request
         result = NavigateToPose.Result()
         with self._ownership.owned(LEGS) as owner:
-            return self._supervise_navigate(goal_handle, goal, owner, result)
+            for _ in range(MAX_RESTARTS):
+                try:
+                    return self._supervise_navigate(goal_handle, goal, owner, result)
+                except _ResetAtStart:
+                    self.get_logger().info("the sim was reset as the navigation began; starting over from the new pose")
+            return finish_goal(self, goal_handle, result, NavigateToPose.Result.SIM_FAULT,
+                               "the simulation kept being reset as the navigation began", abort=True)
 
     def _supervise_navigate(self, goal_handle: ServerGoalHandle, goal: NavigateToPose.Goal, owner: ActiveGoal,
                             result: NavigateToPose.Result) -> NavigateToPose.Result:
@@ -301,6 +350,7 @@ class LocomotionServer(Node):
                                "no /odom or /sim/locomotion_state: is /sim running with the g1?", abort=True)
         odom, _ = inputs
         x, y = odom.pose.pose.position.x, odom.pose.pose.position.y
+        start_x, start_y = x, y
         try:
             path = self._plan(x, y, (gx, gy))
         except NoPathError as error:
@@ -368,6 +418,7 @@ class LocomotionServer(Node):
             previous, odom = odom, self._next_odom()
             if self._jumped(previous, odom):
                 self._command(0.0)
+                self._raise_if_fresh(now - start_time, math.dist((x, y), (start_x, start_y)))
                 return finish_goal(self, goal_handle, result, codes.SIM_FAULT,
                                    "the simulation was reset during the navigation", abort=True)
 

@@ -39,6 +39,7 @@ import robot_models
 from nodes.conversions import occupancy_grid_msg, set_pose, set_time
 from nodes.parameters import ParameterSpec, declare
 from nodes.plugins import InLoopPlugins
+from nodes.serialized import ClockTemplate, JointStateTemplate, TemplateError
 from nodes.tf_builder import TransformSet, link_pairs
 from sim_bridge import Pacer, Simulation, SimulationFaultError, UnknownNameError
 from sim_bridge.navigation import grid_from_obstacles
@@ -91,6 +92,7 @@ class SimNode(LifecycleNode):
         self._paused = bool(self.get_parameter("start_paused").value)
         self._pacer = Pacer(self._param("real_time_factor"))
         self._periods: dict[str, float] = {}
+        self._stops: tuple[str, ...] = ()
         self._schedule = _Schedule()
         self._fault_count = 0
         self._last_rtf = 0.0
@@ -135,6 +137,11 @@ class SimNode(LifecycleNode):
             "link_tf": period("link_tf_rate"),
             "state": period("state_rate"),
         }
+        # /clock and /joint_states set the stepping stops. A slower stream rides along: it is
+        # published at the first stop at or after it falls due (stamped with that exact sim
+        # time, its mean rate unchanged), so it adds no stop, no Python loop turn of its own.
+        fastest = min(self._periods["clock"], self._periods["joint_states"])
+        self._stops = tuple(name for name, p in self._periods.items() if name in ("clock", "joint_states") or p < fastest)
 
     # ----- lifecycle ---------------------------------------------------------------------
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -170,6 +177,12 @@ class SimNode(LifecycleNode):
         self._clock_msg = Clock()
         self._joint_msg = JointState()
         self._joint_msg.name = list(sim.robot.actuated_joints)
+        try:  # the two streams published at every stop: serialized once, numbers patched in
+            self._clock_template: ClockTemplate | None = ClockTemplate()
+            self._joint_template: JointStateTemplate | None = JointStateTemplate(list(sim.robot.actuated_joints))
+        except TemplateError as error:
+            self.get_logger().warning(f"{error}; publishing /clock and /joint_states the ordinary way")
+            self._clock_template = self._joint_template = None
         self._odom_msg = Odometry()
         robot = sim.robot
         self._odom_frame = "odom" if robot.floating_base else "world"
@@ -254,9 +267,8 @@ class SimNode(LifecycleNode):
         """Step whole control steps up to the next publication due, then publish what is due."""
         sim = self.sim
         assert sim is not None and self.plugins is not None
-        schedule = self._schedule
         now = sim.time
-        due = min(schedule.clock, schedule.joint_states, schedule.odom, schedule.link_tf, schedule.state)
+        due = self._next_stop()
         dt = sim.physics_timestep
         chunk = min(MAX_CHUNK_S, self.plugins.max_chunk)
         steps = max(1, min(int(chunk / dt), math.ceil((due - now) / dt - 1e-6)))
@@ -266,6 +278,11 @@ class SimNode(LifecycleNode):
         except Exception as error:  # noqa: BLE001 - the physics thread must survive a controller failure
             self._recover(error)
         self._publish_due(sim.time)
+
+    def _next_stop(self) -> float:
+        """Sim time [s] of the next publication that stepping must stop for."""
+        schedule = self._schedule
+        return min(getattr(schedule, name) for name in self._stops)
 
     def _recover(self, error: Exception) -> None:
         """After the physics diverged or a controller failed: log why, reset to the keyframe."""
@@ -287,17 +304,21 @@ class SimNode(LifecycleNode):
         periods = self._periods
         eps = 1e-9
         if force or now + eps >= schedule.clock:
-            set_time(self._clock_msg.clock, now)
-            self._clock_pub.publish(self._clock_msg)
+            if self._clock_template is not None:
+                self._clock_pub.publish(self._clock_template.serialize(now))
+            else:
+                set_time(self._clock_msg.clock, now)
+                self._clock_pub.publish(self._clock_msg)
             schedule.clock = _next_due(schedule.clock, periods["clock"], now)
         if force or now + eps >= schedule.joint_states:
             self._publish_joint_states(now)
             schedule.joint_states = _next_due(schedule.joint_states, periods["joint_states"], now)
+        # The streams below are built and published only while someone subscribes (the checks
+        # cost ~1 us); /clock and /joint_states are always published.
         if force or now + eps >= schedule.odom:
             self._publish_odom(now)
             schedule.odom = _next_due(schedule.odom, periods["odom"], now)
         if len(self._link_tf) and (force or now + eps >= schedule.link_tf):
-            # The link transforms are the costliest message; built only when someone listens.
             if self._tf_pub.get_subscription_count() > 0:
                 self._tf_pub.publish(self._link_tf.update(sim.data, now))
             schedule.link_tf = _next_due(schedule.link_tf, periods["link_tf"], now)
@@ -310,6 +331,9 @@ class SimNode(LifecycleNode):
     def _publish_joint_states(self, now: float) -> None:
         assert self.sim is not None
         positions, velocities, efforts = self.sim.joint_arrays()
+        if self._joint_template is not None:
+            self._joint_pub.publish(self._joint_template.serialize(now, positions, velocities, efforts))
+            return
         msg = self._joint_msg
         set_time(msg.header.stamp, now)
         # array.array takes the generated setters' fast path (no per-element checks).
@@ -319,7 +343,12 @@ class SimNode(LifecycleNode):
         self._joint_pub.publish(msg)
 
     def _publish_odom(self, now: float) -> None:
+        """/odom and the odom -> base transform on /tf, each while someone subscribes."""
         assert self.sim is not None
+        odom_wanted = self._odom_pub.get_subscription_count() > 0
+        tf_wanted = self._tf_pub.get_subscription_count() > 0
+        if not (odom_wanted or tf_wanted):
+            return
         base = self.sim.base_state()
         msg = self._odom_msg
         set_time(msg.header.stamp, now)
@@ -329,7 +358,10 @@ class SimNode(LifecycleNode):
         twist = msg.twist.twist
         twist.linear.x, twist.linear.y, twist.linear.z = v[0], v[1], v[2]
         twist.angular.x, twist.angular.y, twist.angular.z = w[0], w[1], w[2]
-        self._odom_pub.publish(msg)
+        if odom_wanted:
+            self._odom_pub.publish(msg)
+        if not tf_wanted:
+            return
         transform = self._base_tf_msg.transforms[0]
         set_time(transform.header.stamp, now)
         position, orientation = msg.pose.pose.position, msg.pose.pose.orientation
@@ -339,9 +371,17 @@ class SimNode(LifecycleNode):
         self._tf_pub.publish(self._base_tf_msg)
 
     def _publish_objects(self, now: float) -> None:
+        """World -> object transforms on /tf and /objects, each while someone subscribes."""
         assert self.sim is not None
+        tf_wanted = self._tf_pub.get_subscription_count() > 0
+        objects_wanted = self._objects_pub.get_subscription_count() > 0
+        if not (tf_wanted or objects_wanted):
+            return
         tf = self._object_tf.update(self.sim.data, now)
-        self._tf_pub.publish(tf)
+        if tf_wanted:
+            self._tf_pub.publish(tf)
+        if not objects_wanted:
+            return
         msg = self._objects_msg
         set_time(msg.header.stamp, now)
         for pose, transform in zip(msg.poses, tf.transforms):
@@ -425,8 +465,7 @@ class SimNode(LifecycleNode):
     def _advance_to_next_event_bounded(self, target: float) -> None:
         sim = self.sim
         assert sim is not None and self.plugins is not None
-        schedule = self._schedule
-        due = min(schedule.clock, schedule.joint_states, schedule.odom, schedule.link_tf, schedule.state, target)
+        due = min(self._next_stop(), target)
         dt = sim.physics_timestep
         steps = max(1, math.ceil((due - sim.time) / dt - 1e-6))
         self.plugins.before_step(sim.time)
@@ -440,7 +479,7 @@ class SimNode(LifecycleNode):
 
 def _float64_array(values: np.ndarray) -> array.array:
     result = array.array("d")
-    result.frombytes(np.ascontiguousarray(values, dtype=np.float64).tobytes())
+    result.frombytes(values.tobytes())  # MuJoCo's arrays are float64; tobytes copies in C order
     return result
 
 

@@ -18,6 +18,13 @@ from sim_bridge.state import BaseState, Pose, SimState
 _BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
 
 
+def _as_slice(indices: np.ndarray) -> slice | np.ndarray:
+    """A slice when the indices are consecutive (indexing then gives a view, ~3x cheaper)."""
+    if len(indices) and np.array_equal(indices, np.arange(indices[0], indices[0] + len(indices))):
+        return slice(int(indices[0]), int(indices[0]) + len(indices))
+    return indices
+
+
 class Simulation:
     """A robot scene stepping at a fixed physics step, with controllers at the control step.
 
@@ -39,9 +46,9 @@ class Simulation:
             raise ValueError(f"control decimation must be a whole number >= 1, got {robot.control_decimation}")
         self.servo = JointServo(self.model, robot.actuated_joints)
         self._controllers: dict[Slot, Controller] = {Slot.JOINT_SERVO: self.servo}
-        self._qpos_adr = np.array([self.model.joint(j).qposadr[0] for j in robot.actuated_joints])
-        self._dof_adr = np.array([self.model.joint(j).dofadr[0] for j in robot.actuated_joints])
-        self._actuator_ids = np.array([self.model.actuator(j).id for j in robot.actuated_joints])
+        self._qpos_adr = _as_slice(np.array([self.model.joint(j).qposadr[0] for j in robot.actuated_joints]))
+        self._dof_adr = _as_slice(np.array([self.model.joint(j).dofadr[0] for j in robot.actuated_joints]))
+        self._actuator_ids = _as_slice(np.array([self.model.actuator(j).id for j in robot.actuated_joints]))
         self._base_body = self.model.body(robot.base_body).id
         self._base_qpos_adr = -1
         self._base_dof_adr = -1
@@ -50,6 +57,7 @@ class Simulation:
             self._base_qpos_adr = int(self.model.jnt_qposadr[joint_id])
             self._base_dof_adr = int(self.model.jnt_dofadr[joint_id])
         self._warnings_seen = 0
+        self._warning_counts = self.data.warning.number  # a live view of MuJoCo's counters
         self._phase = 0  # physics steps since the last control update
         self.reset(robot.default_keyframe, keep_time=False)
 
@@ -104,6 +112,12 @@ class Simulation:
         """
         remaining = int(physics_steps)
         model, data = self.model, self.data
+        if remaining > 0 and not any(c.active for c in self._controllers.values()):
+            # Nothing to run (controllers only start between calls): one batched call, grid kept.
+            mujoco.mj_step(model, data, nstep=remaining)
+            self._phase = (self._phase + remaining) % self.decimation
+            self._check_fault()
+            return
         while remaining > 0:
             if self._phase == 0:
                 active = [c for c in self._controllers.values() if c.active]
@@ -132,7 +146,7 @@ class Simulation:
 
     def _check_fault(self) -> None:
         # MuJoCo counts bad accelerations (and resets the state itself); NaN can only come with them.
-        warnings = self.data.warning[_BADQACC].number
+        warnings = int(self._warning_counts[_BADQACC])
         if warnings != self._warnings_seen:
             self._warnings_seen = warnings
             raise SimulationFaultError(f"physics diverged at t={self.time:.3f} s (bad accelerations); reset the simulation")
@@ -154,7 +168,7 @@ class Simulation:
             self.data.time = now
         mujoco.mj_forward(self.model, self.data)
         self._phase = 0
-        self._warnings_seen = int(self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number)
+        self._warnings_seen = int(self._warning_counts[_BADQACC])
         for controller in self._controllers.values():
             controller.reset(self.model, self.data)
 
@@ -175,7 +189,10 @@ class Simulation:
         return BaseState(Pose(data.xpos[self._base_body].copy(), quat), np.zeros(3), np.zeros(3))
 
     def joint_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Positions, velocities and actuator efforts of the actuated joints, shape (n,) each."""
+        """Positions, velocities and actuator efforts of the actuated joints, shape (n,) each.
+
+        These may be views into MjData (valid until the next step): copy what you keep.
+        """
         data = self.data
         return data.qpos[self._qpos_adr], data.qvel[self._dof_adr], data.actuator_force[self._actuator_ids]
 

@@ -32,6 +32,7 @@ class TopicRecorder(Generic[MsgT]):
         self._messages: list[MsgT] = []
         self._keep = keep
         self.count = 0
+        self._unsubscribe: Callable[[], Any] | None = None
 
     def _on_message(self, msg: MsgT) -> None:
         with self._lock:
@@ -52,6 +53,12 @@ class TopicRecorder(Generic[MsgT]):
     def clear(self) -> None:
         with self._lock:
             self._messages.clear()
+
+    def stop(self) -> None:
+        """Unsubscribe (the messages kept so far stay readable)."""
+        if self._unsubscribe is not None:
+            self._unsubscribe()
+            self._unsubscribe = None
 
 
 class RosSession:
@@ -121,7 +128,8 @@ class RosSession:
     # ----- topics and services -----------------------------------------------------------
     def record(self, msg_type: type[MsgT], topic: str, qos: QoSProfile | int = 10, keep: int = 100_000) -> TopicRecorder[MsgT]:
         recorder: TopicRecorder[MsgT] = TopicRecorder(keep)
-        self.node.create_subscription(msg_type, topic, recorder._on_message, qos)
+        subscription = self.node.create_subscription(msg_type, topic, recorder._on_message, qos)
+        recorder._unsubscribe = lambda: self.node.destroy_subscription(subscription)
         return recorder
 
     def call(self, srv_type: Any, name: str, request: Any, timeout: float = 10.0) -> Any:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable
 
 from rclpy.action import ActionClient
 
@@ -16,6 +16,13 @@ class Sent:
 
     handle: Any
     feedback: list = field(default_factory=list)
+    _result_future: Any = None
+
+    def result_future(self) -> Any:
+        """The one result request of this goal (asked once, shared by every waiter)."""
+        if self._result_future is None:
+            self._result_future = self.handle.get_result_async()
+        return self._result_future
 
 
 def send(session: RosSession, client: ActionClient, goal: Any, timeout: float = 30.0) -> Sent:
@@ -27,7 +34,23 @@ def send(session: RosSession, client: ActionClient, goal: Any, timeout: float = 
 
 def result(session: RosSession, sent: Sent, timeout: float = 120.0) -> Any:
     """The wrapped result (``.status``, ``.result``)."""
-    return session.wait_future(sent.handle.get_result_async(), timeout, "the action result")
+    return session.wait_future(sent.result_future(), timeout, "the action result")
+
+
+def wait_feedback(session: RosSession, sent: Sent, predicate: Callable[[Any], bool], timeout: float, what: str) -> Any:
+    """Wait until the latest feedback satisfies ``predicate``; fail at once, naming why, if the goal ends first."""
+    future = sent.result_future()
+
+    def ready() -> bool:
+        if sent.feedback and predicate(sent.feedback[-1]):
+            return True
+        if future.done():
+            outcome = future.result()
+            raise AssertionError(f"the goal ended (status {outcome.status}, code {outcome.result.error_code}: "
+                                 f"{outcome.result.error_msg!r}) before {what}")
+        return False
+
+    return session.wait_for(ready, timeout, what)
 
 
 def ready_client(session: RosSession, action_type: Any, name: str, timeout: float = 60.0) -> ActionClient:

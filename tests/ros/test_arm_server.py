@@ -13,7 +13,7 @@ from robot_models import panda_constants
 from sim_interfaces.action import MoveArm, PickPlace
 from sim_interfaces.msg import ObjectStates
 from sim_interfaces.srv import ComputeIK
-from tests.ros.actions import ready_client, result, send
+from tests.ros.actions import ready_client, result, send, wait_feedback
 from tests.ros.processes import running
 
 DOWN = (1.0, 0.0, 0.0, 0.0)  # tool z axis pointing down: quaternion (x, y, z, w) = (1, 0, 0, 0)
@@ -67,7 +67,7 @@ def test_move_arm_reaches_five_poses_within_a_millimetre(client, move_arm):
 def test_cancel_stops_the_arm_and_it_holds(client, move_arm):
     assert result(client, send(client, move_arm, move_goal(0.5, -0.3, 0.3, scaling=1.0))).result.error_code == 0
     sent = send(client, move_arm, move_goal(0.5, 0.3, 0.3, scaling=0.1))
-    client.wait_for(lambda: sent.feedback and sent.feedback[-1].percent_complete > 10.0, 60.0, "the move to be under way")
+    wait_feedback(client, sent, lambda f: f.percent_complete > 10.0, 60.0, "the move to be under way")
     joints = client.record(JointState, "/joint_states", keep=2000)
     client.wait_future(sent.handle.cancel_goal_async(), 10.0, "cancel response")
     outcome = result(client, sent)
@@ -82,7 +82,7 @@ def test_cancel_stops_the_arm_and_it_holds(client, move_arm):
 
 def test_a_new_goal_preempts_the_running_one(client, move_arm):
     first = send(client, move_arm, move_goal(0.5, -0.3, 0.25, scaling=0.1))
-    client.wait_for(lambda: len(first.feedback) > 2, 30.0, "the first goal to run")
+    wait_feedback(client, first, lambda _f: len(first.feedback) > 2, 30.0, "the first goal to run")
     second = send(client, move_arm, move_goal(0.4, 0.2, 0.35, scaling=1.0))
     first_outcome = result(client, first)
     assert first_outcome.status == GoalStatus.STATUS_ABORTED

@@ -12,7 +12,7 @@ from nav_msgs.msg import Odometry
 from nodes.conversions import seconds_of, yaw_of
 from sim_interfaces.action import NavigateToPose, Walk
 from sim_interfaces.srv import Reset
-from tests.ros.actions import ready_client, result, send
+from tests.ros.actions import ready_client, result, send, wait_feedback
 from tests.ros.processes import running
 
 pytestmark = pytest.mark.slow
@@ -80,7 +80,7 @@ def test_walking_speed_changes_the_pace_mid_walk(client, walk, odom):
     assert client.set_parameter("locomotion", "walking_speed", 0.2)[0]
     try:
         sent = send(client, walk, Walk.Goal(distance=5.0))
-        client.wait_for(lambda: sent.feedback and seconds_of(sent.feedback[-1].elapsed) > 5.0, 120.0, "5 s of walking")
+        wait_feedback(client, sent, lambda f: seconds_of(f.elapsed) > 5.0, 120.0, "5 s of walking")
         changed_at = seconds_of(odom.latest.header.stamp)
         slow = pace(odom.messages(), changed_at - 2.5, changed_at)
         ok, reason = client.set_parameter("locomotion", "walking_speed", 0.4)
@@ -135,7 +135,7 @@ def test_cmd_vel_turns_the_robot_in_place_by_ninety_degrees(client, odom, g1):
 def test_cancel_stops_the_walk_and_the_robot_stands(client, walk, odom):
     reset(client)
     sent = send(client, walk, Walk.Goal(distance=3.0, speed=0.3))
-    client.wait_for(lambda: sent.feedback and sent.feedback[-1].distance_walked > 0.4, 120.0, "the walk to be under way")
+    wait_feedback(client, sent, lambda f: f.distance_walked > 0.4, 120.0, "the walk to be under way")
     client.wait_future(sent.handle.cancel_goal_async(), 10.0, "cancel")
     outcome = result(client, sent)
     assert outcome.status == GoalStatus.STATUS_CANCELED
@@ -150,7 +150,7 @@ def test_cancel_stops_the_walk_and_the_robot_stands(client, walk, odom):
 def test_a_new_walk_preempts_the_running_one(client, walk, odom):
     reset(client)
     first = send(client, walk, Walk.Goal(distance=3.0, speed=0.3))
-    client.wait_for(lambda: first.feedback and first.feedback[-1].distance_walked > 0.2, 120.0, "the first walk")
+    wait_feedback(client, first, lambda f: f.distance_walked > 0.2, 120.0, "the first walk to be under way")
     second = send(client, walk, Walk.Goal(distance=0.5, speed=0.3))
     first_outcome = result(client, first)
     assert first_outcome.status == GoalStatus.STATUS_ABORTED
