@@ -140,7 +140,9 @@ class GoalHandle(Generic[FeedbackT, ResultT]):
         if not self.accepted or self.done:
             return False
         assert self._handle is not None
-        response = self._session.wait_future(self._handle.cancel_goal_async(), timeout, f"cancel of {self._client.name}")
+        handle = self._handle
+        request = self._session.in_executor(handle.cancel_goal_async, timeout, f"cancel of {self._client.name}")
+        response = self._session.wait_future(request, timeout, f"cancel of {self._client.name}")
         return bool(response.goals_canceling)
 
     def outcome(self) -> Outcome[ResultT] | None:
@@ -209,11 +211,12 @@ class _ActionClientBase(Generic[GoalT, FeedbackT, ResultT]):
         """
         self.wait_for_server(timeout)
         handle: GoalHandle[FeedbackT, ResultT] = GoalHandle(self, goal)
-        future = self._client.send_goal_async(goal, feedback_callback=handle._on_feedback)
-        goal_handle = self.session.wait_future(future, timeout, f"acceptance of the {self.name} goal")
+        what = f"acceptance of the {self.name} goal"
+        future = self.session.in_executor(lambda: self._client.send_goal_async(goal, feedback_callback=handle._on_feedback), timeout, what)
+        goal_handle = self.session.wait_future(future, timeout, what)
         handle._handle = goal_handle
         if goal_handle.accepted:
-            handle._result_future = goal_handle.get_result_async()
+            handle._result_future = self.session.in_executor(goal_handle.get_result_async, timeout, f"the {self.name} result request")
         return handle
 
     def destroy(self) -> None:

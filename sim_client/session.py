@@ -18,6 +18,7 @@ from rclpy.qos import QoSProfile
 from rclpy.task import Future
 
 MsgT = TypeVar("MsgT")
+T = TypeVar("T")
 
 
 class WaitTimeout(TimeoutError):
@@ -124,6 +125,19 @@ class RosSession:
     def wait_future(self, future: Future, timeout: float, what: str) -> Any:
         self.wait_for(future.done, timeout, what)
         return future.result()
+
+    def in_executor(self, function: Callable[[], T], timeout: float = 10.0, what: str = "the executor") -> T:
+        """Run ``function`` on the executor's thread and return what it returns.
+
+        rclpy's ActionClient (Jazzy) sends a goal, result or cancel request and only then records
+        the request's sequence number, without a lock; when its response is handled on the
+        executor thread in between, it is dropped as "unexpected" and the future never completes.
+        Sending from the executor's own (single) thread closes that window. Never call this from
+        inside an executor callback.
+        """
+        task = self._executor.create_task(function)
+        self.wait_for(task.done, timeout, f"{what} to run the request")
+        return task.result()
 
     # ----- topics and services -----------------------------------------------------------
     def record(self, msg_type: type[MsgT], topic: str, qos: QoSProfile | int = 10, keep: int = 100_000) -> TopicRecorder[MsgT]:

@@ -15,19 +15,29 @@ class Sent:
     """A goal in flight: its handle, the feedback received so far."""
 
     handle: Any
+    session: RosSession | None = None
     feedback: list = field(default_factory=list)
     _result_future: Any = None
 
     def result_future(self) -> Any:
         """The one result request of this goal (asked once, shared by every waiter)."""
         if self._result_future is None:
-            self._result_future = self.handle.get_result_async()
+            assert self.session is not None
+            self._result_future = self.session.in_executor(self.handle.get_result_async, what="the result request")
         return self._result_future
+
+    def cancel(self, timeout: float = 10.0) -> Any:
+        """Request a cancel and return the server's cancel response."""
+        assert self.session is not None
+        request = self.session.in_executor(self.handle.cancel_goal_async, timeout, "the cancel request")
+        return self.session.wait_future(request, timeout, "the cancel response")
 
 
 def send(session: RosSession, client: ActionClient, goal: Any, timeout: float = 30.0) -> Sent:
-    sent = Sent(handle=None)
-    future = client.send_goal_async(goal, feedback_callback=lambda msg: sent.feedback.append(msg.feedback))
+    sent = Sent(handle=None, session=session)
+    # Sent from the executor's thread: see RosSession.in_executor for the rclpy race this avoids.
+    future = session.in_executor(lambda: client.send_goal_async(goal, feedback_callback=lambda msg: sent.feedback.append(msg.feedback)),
+                                 timeout, "the goal request")
     sent.handle = session.wait_future(future, timeout, "goal acceptance")
     return sent
 

@@ -69,7 +69,7 @@ def test_cancel_stops_the_arm_and_it_holds(client, move_arm):
     sent = send(client, move_arm, move_goal(0.5, 0.3, 0.3, scaling=0.1))
     wait_feedback(client, sent, lambda f: f.percent_complete > 10.0, 60.0, "the move to be under way")
     joints = client.record(JointState, "/joint_states", keep=2000)
-    client.wait_future(sent.handle.cancel_goal_async(), 10.0, "cancel response")
+    sent.cancel()
     outcome = result(client, sent)
     assert outcome.status == GoalStatus.STATUS_CANCELED
     assert outcome.result.error_code == MoveArm.Result.CANCELED
