@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ast
+import math
 import pathlib
 
 import numpy as np
@@ -143,4 +144,22 @@ def test_controllers_run_on_the_control_grid_whatever_the_physics_chunks():
         sim.step_physics(chunk)
     assert sim.time == pytest.approx(t0 + 16 * sim.physics_timestep)
     expected = [t0 + k * sim.control_timestep for k in range(16 // sim.decimation)]
+    np.testing.assert_allclose(counter.times, expected, atol=1e-9)
+
+
+def test_batched_idle_stepping_keeps_the_control_grid_for_a_controller_that_starts_later():
+    from sim_bridge import Slot
+
+    sim = Simulation(robot_models.load("panda"))
+    t0 = sim.time
+    for chunk in (3, 2, 2):  # no controller active: each chunk is one batched mj_step call
+        sim.step_physics(chunk)
+    counter = CountingController()
+    sim.set_controller(Slot.ARM, counter)
+    sim.step_physics(6)
+    dt, control_dt = sim.physics_timestep, sim.control_timestep
+    first_boundary = t0 + math.ceil(7 / sim.decimation) * control_dt  # the first grid time at or after step 7
+    expected = [first_boundary + k * control_dt for k in range(len(counter.times))]
+    assert counter.times, "the controller ran"
+    assert counter.times[0] >= t0 + 7 * dt - 1e-9
     np.testing.assert_allclose(counter.times, expected, atol=1e-9)
