@@ -187,6 +187,18 @@ class LocomotionServer(Node):
             return finish_goal(self, goal_handle, result, codes.CANCELED, "canceled: the robot stopped and stands", cancel=True)
         return None
 
+    def _execute_restartable(self, goal_handle: ServerGoalHandle, action_type, supervise, what: str):
+        """Run ``supervise`` owning the legs; start it over when a reset is seen as it begins."""
+        result = action_type.Result()
+        with self._ownership.owned(LEGS) as owner:
+            for _ in range(MAX_RESTARTS):
+                try:
+                    return supervise(goal_handle, goal_handle.request, owner, result)
+                except _ResetAtStart:
+                    self.get_logger().info(f"the sim was reset as the {what} began; starting over from the new pose")
+            return finish_goal(self, goal_handle, result, action_type.Result.SIM_FAULT,
+                               f"the simulation kept being reset as the {what} began", abort=True)
+
     # ----- Walk --------------------------------------------------------------------------
     def _validate_walk(self, goal: Walk.Goal) -> None:
         values = {"distance": goal.distance, "speed": goal.speed, "timeout": goal.timeout}
@@ -202,16 +214,7 @@ class LocomotionServer(Node):
             raise GoalRejected(f"timeout must be >= 0 s (0 = automatic), got {goal.timeout}")
 
     def _execute_walk(self, goal_handle: ServerGoalHandle) -> Walk.Result:
-        goal: Walk.Goal = goal_handle.request
-        result = Walk.Result()
-        with self._ownership.owned(LEGS) as owner:
-            for _ in range(MAX_RESTARTS):
-                try:
-                    return self._supervise_walk(goal_handle, goal, owner, result)
-                except _ResetAtStart:
-                    self.get_logger().info("the sim was reset as the walk began; starting over from the new pose")
-            return finish_goal(self, goal_handle, result, Walk.Result.SIM_FAULT,
-                               "the simulation kept being reset as the walk began", abort=True)
+        return self._execute_restartable(goal_handle, Walk, self._supervise_walk, "walk")
 
     def _supervise_walk(self, goal_handle: ServerGoalHandle, goal: Walk.Goal, owner: ActiveGoal, result: Walk.Result) -> Walk.Result:
         inputs = self._wait_inputs()
@@ -329,16 +332,7 @@ class LocomotionServer(Node):
         return plan_path(grid_from_msg(grid_msg).inflated(inflation), (x, y), goal_xy)
 
     def _execute_navigate(self, goal_handle: ServerGoalHandle) -> NavigateToPose.Result:
-        goal: NavigateToPose.Goal = goal_handle.request
-        result = NavigateToPose.Result()
-        with self._ownership.owned(LEGS) as owner:
-            for _ in range(MAX_RESTARTS):
-                try:
-                    return self._supervise_navigate(goal_handle, goal, owner, result)
-                except _ResetAtStart:
-                    self.get_logger().info("the sim was reset as the navigation began; starting over from the new pose")
-            return finish_goal(self, goal_handle, result, NavigateToPose.Result.SIM_FAULT,
-                               "the simulation kept being reset as the navigation began", abort=True)
+        return self._execute_restartable(goal_handle, NavigateToPose, self._supervise_navigate, "navigation")
 
     def _supervise_navigate(self, goal_handle: ServerGoalHandle, goal: NavigateToPose.Goal, owner: ActiveGoal,
                             result: NavigateToPose.Result) -> NavigateToPose.Result:

@@ -140,8 +140,7 @@ class GoalHandle(Generic[FeedbackT, ResultT]):
         if not self.accepted or self.done:
             return False
         assert self._handle is not None
-        handle = self._handle
-        request = self._session.in_executor(handle.cancel_goal_async, timeout, f"cancel of {self._client.name}")
+        request = self._session.in_executor(self._handle.cancel_goal_async, timeout, f"cancel of {self._client.name}")
         response = self._session.wait_future(request, timeout, f"cancel of {self._client.name}")
         return bool(response.goals_canceling)
 
