@@ -12,6 +12,8 @@ For each robot, measured in one run on this machine:
      subscriber's own work then competes for the machine's two cores).
  (b) the sim process's CPU use at real_time_factor 1 with /joint_states at 500 Hz, and the
      /joint_states arrival period jitter seen by a subscriber in another process (p50/p99).
+     Two floors at the same 2 ms cadence put it in context: a bare ``mj_step`` loop with no ROS,
+     and a child process doing only that loop plus one rclpy JointState publish per period.
 
 Usage: ``make bench`` or ``.venv/bin/python benchmarks/sim_bench.py [--robots g1 panda] [--seconds 8]``.
 """
@@ -21,6 +23,7 @@ from __future__ import annotations
 import argparse
 import functools
 import os
+import re
 import statistics
 import time
 
@@ -34,6 +37,7 @@ from std_srvs.srv import Trigger
 from tf2_msgs.msg import TFMessage
 
 import robot_models
+from sim_bridge import Simulation
 from sim_client.processes import running
 from sim_client.session import RosSession
 from sim_interfaces.msg import ObjectStates
@@ -115,6 +119,55 @@ def physics_floor_cpu(robot: str, period_s: float, seconds: float) -> float:
     return 100.0 * (time.thread_time() - cpu0) / (time.monotonic() - start)
 
 
+def ros_floor_child(robot: str, period_s: float, seconds: float) -> None:
+    """Child process of :func:`ros_floor_cpu`: the bare loop plus one rclpy /joint_states publish per period."""
+    import rclpy
+    from rclpy.qos import QoSProfile
+
+    from nodes.serialized import JointStateTemplate
+
+    sim = Simulation(_spec(robot))  # the model and joint indexing; stepped with bare mj_step below
+    model, data = sim.model, sim.data
+    steps = max(1, round(period_s / model.opt.timestep))
+    rclpy.init()
+    node = rclpy.create_node("sim_bench_floor")
+    publisher = node.create_publisher(JointState, "/joint_states", QoSProfile(depth=10))
+    template = JointStateTemplate(list(sim.robot.actuated_joints))
+    while publisher.get_subscription_count() == 0:  # the parent's subscriber; it bounds this wait
+        time.sleep(0.01)
+    pid = os.getpid()
+    start, cpu0, process0 = time.monotonic(), time.thread_time(), process_cpu_seconds(pid)
+    due = start
+    while time.monotonic() - start < seconds:
+        mujoco.mj_step(model, data, nstep=steps)
+        publisher.publish(template.serialize(data.time, *sim.joint_arrays()))
+        due += period_s
+        time.sleep(max(0.0, due - time.monotonic()))
+    wall = time.monotonic() - start
+    thread = 100.0 * (time.thread_time() - cpu0) / wall
+    process = 100.0 * (process_cpu_seconds(pid) - process0) / wall
+    print(f"FLOOR thread {thread:.2f} process {process:.2f}", flush=True)
+    node.destroy_node()
+    rclpy.shutdown()
+
+
+def ros_floor_cpu(session: RosSession, robot: str, period_s: float, seconds: float) -> float:
+    """CPU [% of one core] of a child process doing only a bare physics loop plus one rclpy publish.
+
+    The same 2 ms cadence as (b), each period one ``mj_step`` stretch and one pre-serialized
+    JointState published to a subscriber in this process; no node logic at all. What the sim
+    node costs above this is its own.
+    """
+    arrivals: list[float] = []
+    subscription = session.node.create_subscription(JointState, "/joint_states", lambda _m: arrivals.append(time.monotonic()), 100)
+    with running(["python", __file__, "--ros-floor-child", robot, str(period_s), str(seconds)]) as child:
+        session.wait_for(lambda: not child.alive(), seconds + 60.0, "the floor measurement")
+        match = re.search(r"FLOOR thread \S+ process (\S+)", child.output())
+    session.node.destroy_subscription(subscription)
+    assert match is not None and arrivals, f"the floor child failed: {child.output()[-2000:]}"
+    return float(match.group(1))
+
+
 def paced_cpu_and_jitter(session: RosSession, robot: str, seconds: float) -> dict[str, float]:
     args = ["sim_node", "--ros-args", "-p", f"robot:={robot}", "-p", "real_time_factor:=1.0", "-p", "joint_state_rate:=500.0"]
     with running(args) as node:
@@ -138,7 +191,12 @@ def main() -> None:
     parser.add_argument("--robots", nargs="+", default=list(robot_models.ROBOT_NAMES))
     parser.add_argument("--seconds", type=float, default=8.0, help="length of the CPU/jitter window (b)")
     parser.add_argument("--rounds", type=int, default=6, help="pause/raw/resume/node rounds of (a)")
+    parser.add_argument("--ros-floor-child", nargs=3, metavar=("ROBOT", "PERIOD_S", "SECONDS"), help=argparse.SUPPRESS)
     options = parser.parse_args()
+    if options.ros_floor_child:
+        robot, period, seconds = options.ros_floor_child
+        ros_floor_child(robot, float(period), float(seconds))
+        return
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 100))
     with RosSession("sim_bench", use_sim_time=False) as session:
@@ -150,8 +208,10 @@ def main() -> None:
                       f"{a['ratio_max']:.2f})", flush=True)
             b = paced_cpu_and_jitter(session, robot, options.seconds)
             floor = physics_floor_cpu(robot, 0.002, options.seconds)
+            ros_floor = ros_floor_cpu(session, robot, 0.002, options.seconds)
             print(f"[{robot}] (b) rtf 1, JS 500 Hz: sim process CPU {b['cpu_percent_of_one_core']:.1f}% of one core "
-                  f"(floor: bare mj_step loop at the same 2 ms cadence, no ROS, {floor:.1f}%); "
+                  f"(floors at the same 2 ms cadence: bare mj_step loop, no ROS, {floor:.1f}%; the same loop plus "
+                  f"one rclpy JointState publish per period, whole process, {ros_floor:.1f}%); "
                   f"received {b['received_hz']:.0f} Hz, period p50 {b['period_p50_ms']:.2f} ms, "
                   f"jitter p50 {b['jitter_p50_ms']:.3f} ms p99 {b['jitter_p99_ms']:.3f} ms", flush=True)
 
