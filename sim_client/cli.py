@@ -18,6 +18,8 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import yaml
@@ -25,6 +27,22 @@ import yaml
 from sim_client.processes import BIN
 
 GOAL_WAIT_S = 3600.0
+
+
+@contextmanager
+def _interrupts() -> Iterator[threading.Event]:
+    """An event set by Ctrl-C (SIGINT) or SIGTERM while the block runs; the old handlers come back after.
+
+    rclpy's own SIGINT handler shuts the ROS context down without raising KeyboardInterrupt,
+    so a command that must stop (or cancel its goal) on Ctrl-C installs this one instead.
+    """
+    event = threading.Event()
+    previous = {sig: signal.signal(sig, lambda *_: event.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield event
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def _feedback_line(feedback: Any, t: float) -> str:
@@ -50,9 +68,7 @@ def _run_goal(client_type: Any, goal: Any, action_label: str, timeout: float) ->
             return 1
         print(f"{action_label}: goal accepted by {client.name}; Ctrl-C cancels it")
         shown = 0
-        interrupted = threading.Event()
-        previous = signal.signal(signal.SIGINT, lambda *_: interrupted.set())
-        try:
+        with _interrupts() as interrupted:
             canceled = False
             deadline = time.monotonic() + GOAL_WAIT_S
             while not handle.done and time.monotonic() < deadline:
@@ -60,14 +76,16 @@ def _run_goal(client_type: Any, goal: Any, action_label: str, timeout: float) ->
                 for sample in history[shown:]:
                     print(_feedback_line(sample.feedback, sample.sim_time), flush=True)
                 shown = len(history)
-                if interrupted.is_set() and not canceled:
+                if interrupted.is_set():
+                    interrupted.clear()
+                    if canceled:  # a second Ctrl-C: stop waiting for the server's answer
+                        print(f"{action_label}: left without the result (the cancel was sent)", flush=True)
+                        return 130
                     canceled = True
-                    print("canceling the goal ...", flush=True)
+                    print("canceling the goal ... (Ctrl-C again to leave without waiting)", flush=True)
                     handle.cancel()
-                interrupted.wait(0.05)
+                interrupted.wait(0.05)  # the feedback print period, or at once on Ctrl-C
             outcome = handle.wait(10.0)
-        finally:
-            signal.signal(signal.SIGINT, previous)
         print(f"{action_label}: {outcome}")
         if outcome.result is not None:
             for name in ("final_distance", "final_position_error", "placement_error"):
@@ -180,13 +198,9 @@ def _watch(options: argparse.Namespace) -> int:
             session.wait_for(lambda: clock.latest is not None and odom.latest is not None, options.timeout, "/clock and /odom")
             console.print(view())
             return 0
-        try:
-            with Live(view(), console=console, refresh_per_second=4) as live:
-                while True:
-                    time.sleep(0.25)  # the terminal refresh period, not a wait for a condition
-                    live.update(view())
-        except KeyboardInterrupt:
-            pass
+        with _interrupts() as interrupted, Live(view(), console=console, refresh_per_second=4) as live:
+            while not interrupted.wait(0.25):  # the terminal refresh period, until Ctrl-C
+                live.update(view())
     return 0
 
 

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import signal
 import subprocess
+import threading
 
 import pytest
 from rosgraph_msgs.msg import Clock
@@ -13,6 +15,37 @@ from sim_client.processes import BIN, running
 
 def sim(*args: str, timeout: float = 90.0) -> subprocess.CompletedProcess:
     return subprocess.run([str(BIN / "sim"), *args], capture_output=True, text=True, timeout=timeout)
+
+
+class LiveCommand:
+    """A ``sim`` command left running, its output lines collected as they come."""
+
+    def __init__(self, *args: str) -> None:
+        self.process = subprocess.Popen([str(BIN / "sim"), *args], stdout=subprocess.PIPE,
+                                        stderr=subprocess.STDOUT, text=True)
+        self.lines: list[str] = []
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        assert self.process.stdout is not None
+        for line in self.process.stdout:
+            self.lines.append(line.rstrip("\n"))
+
+    @property
+    def output(self) -> str:
+        return "\n".join(self.lines)
+
+    def finish(self, timeout: float) -> int:
+        """The exit code once the command has ended and its output is read (killed after ``timeout`` s)."""
+        try:
+            code = self.process.wait(timeout)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+            raise
+        self._reader.join(timeout)
+        return code
 
 
 @pytest.fixture(scope="module")
@@ -53,3 +86,36 @@ def test_move_arm_streams_feedback_until_the_result(panda):
     lines = moved.stdout.splitlines()
     assert any("position_error=" in line for line in lines), moved.stdout
     assert "SUCCEEDED (SUCCESS)" in lines[-2] or "SUCCEEDED (SUCCESS)" in moved.stdout
+
+
+def test_ctrl_c_cancels_the_running_goal(panda, client):
+    assert sim("param", "set", "arm", "max_velocity_scaling", "0.05").returncode == 0  # a slow move to interrupt
+    command = LiveCommand("move-arm", "0.3", "-0.3", "0.5")
+    try:
+        client.wait_for(lambda: any("position_error=" in line for line in command.lines) or command.process.poll() is not None,
+                        60.0, "feedback of the move")
+        assert command.process.poll() is None, command.output
+        command.process.send_signal(signal.SIGINT)
+        code = command.finish(30.0)
+    finally:
+        if command.process.poll() is None:
+            command.process.kill()
+        assert sim("param", "set", "arm", "max_velocity_scaling", "0.5").returncode == 0
+    assert code == 1, command.output
+    assert "canceling the goal" in command.output
+    assert "CANCELED (CANCELED)" in command.output and "the arm holds" in command.output
+
+
+def test_watch_runs_until_ctrl_c(panda, client):
+    command = LiveCommand("watch")
+    try:
+        client.wait_for(lambda: "sim_watch" in client.node.get_node_names() or command.process.poll() is not None,
+                        30.0, "the watch node in the ROS graph")
+        assert command.process.poll() is None, command.output
+        command.process.send_signal(signal.SIGINT)
+        code = command.finish(15.0)
+    finally:
+        if command.process.poll() is None:
+            command.process.kill()
+    assert code == 0, command.output
+    assert "sim time" in command.output
