@@ -12,6 +12,7 @@ import collections
 import math
 import os
 import sys
+import time
 
 import numpy as np
 from geometry_msgs.msg import PoseStamped, Twist
@@ -128,14 +129,23 @@ class LocomotionServer(Node):
         self._cmd_pub.publish(msg)
 
     def _wait_inputs(self) -> tuple[Odometry, LocomotionState] | None:
-        """Fresh /odom (published after the goal arrived, so never from before a reset) and the state."""
-        waited = 0.0
-        while waited < ACK_TIMEOUT_S:
-            fresh = self._odom.wait_next(0.1)
-            waited += 0.1
-            odom, state = self._odom.get(), self._state.get()
-            if fresh and odom is not None and state is not None:
+        """Fresh /odom (published after the goal arrived, so never from before a reset) and a state as new.
+
+        /sim publishes the odometry and the controller state of an instant one after the other, on
+        two topics: when the odometry arrives, that instant's state may still be on its way and the
+        state at hand may be from before a reset (e.g. "fallen"). So the state must carry a stamp at
+        least as late as the odometry's.
+        """
+        deadline = time.monotonic() + ACK_TIMEOUT_S
+        odom = None
+        while odom is None and time.monotonic() < deadline:
+            if self._odom.wait_next(0.1):
+                odom = self._odom.get()
+        while odom is not None and time.monotonic() < deadline:
+            state = self._state.get()
+            if state is not None and seconds_of(state.header.stamp) >= seconds_of(odom.header.stamp):
                 return odom, state
+            self._state.wait_next(0.1)
         return None
 
     @staticmethod

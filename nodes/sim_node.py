@@ -44,7 +44,7 @@ from nodes.tf_builder import TransformSet, link_pairs
 from sim_bridge import Pacer, Simulation, SimulationFaultError, UnknownNameError
 from sim_bridge.navigation import grid_from_obstacles
 from sim_interfaces.msg import ObjectStates
-from sim_interfaces.srv import Reset, Step
+from sim_interfaces.srv import Push, Reset, Step
 
 NODE_NAME = "sim"
 MAX_CHUNK_S = 0.05  # longest stretch of sim time stepped without releasing the lock [s]
@@ -210,6 +210,7 @@ class SimNode(LifecycleNode):
         services = MutuallyExclusiveCallbackGroup()
         self.create_service(Reset, "~/reset", self._on_reset, callback_group=services)
         self.create_service(Step, "~/step", self._on_step, callback_group=services)
+        self.create_service(Push, "~/push", self._on_push, callback_group=services)
         self.create_service(Trigger, "~/pause", self._on_pause, callback_group=services)
         self.create_service(Trigger, "~/resume", self._on_resume, callback_group=services)
         self.create_subscription(Twist, "/cmd_vel", self._on_cmd_vel, reliable, callback_group=ReentrantCallbackGroup())
@@ -417,6 +418,23 @@ class SimNode(LifecycleNode):
             response.message = f"reset to keyframe {request.keyframe or self.sim.robot.default_keyframe!r}"
             response.sim_time = self.sim.time
         self.get_logger().info(response.message)
+        return response
+
+    def _on_push(self, request: Push.Request, response: Push.Response) -> Push.Response:
+        assert self.sim is not None
+        body = request.body or self.sim.robot.base_body
+        force, torque = request.wrench.force, request.wrench.torque
+        with self._lock:
+            response.sim_time = self.sim.time
+            try:
+                response.end_time = self.sim.push(body, (force.x, force.y, force.z), (torque.x, torque.y, torque.z),
+                                                  request.duration)
+            except (UnknownNameError, ValueError) as error:
+                response.success = False
+                response.message = str(error)
+                return response
+        response.success = True
+        response.message = f"pushing {body} until t={response.end_time:.3f} s"
         return response
 
     def _on_pause(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:

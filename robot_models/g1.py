@@ -4,6 +4,8 @@ Changes against the URDF as shipped:
 - the floating base block (commented out in the URDF) is restored, so the pelvis has a free joint;
 - the mesh collision geoms and the four 5 mm foot spheres are replaced by one box sole per foot
   (0.20 x 0.07 m, like the real sole); visual meshes are kept for rendering, without contacts;
+- a body shell of capsules and spheres (pelvis, torso, head, limbs, hands) that touches only the
+  floor and obstacles, so a fallen robot lies on the floor;
 - a floor, a light, sole/hand/IMU sites, joint armature and damping, position servos with gains
   that hold a stand (hip/knee 500, hip yaw 350, ankle 300, kd = 0.03 kp; waist and arms 150/3);
 - physics: 2 ms step, implicitfast, elliptic friction cone with impratio 10;
@@ -59,9 +61,27 @@ def _add_obstacles(spec: mujoco.MjSpec) -> tuple[Obstacle, ...]:
     obstacles = []
     for name, x, y, hx, hy, height in names.COURSE_OBSTACLES:
         spec.worldbody.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX, size=[hx, hy, height / 2],
-                                pos=[x, y, height / 2], rgba=[0.8, 0.55, 0.2, 1.0], contype=1, conaffinity=1)
+                                pos=[x, y, height / 2], rgba=[0.8, 0.55, 0.2, 1.0], contype=1,
+                                conaffinity=1 | names.SHELL_CONTYPE)
         obstacles.append(Obstacle(name=name, center_xy=(x, y), half_size_xy=(hx, hy), height=height))
     return tuple(obstacles)
+
+
+def _add_body_shell(spec: mujoco.MjSpec) -> None:
+    """Massless primitive geoms that collide with the floor and obstacles only (see ``BODY_SHELL``)."""
+    for name, body, shape, radius, start, end in names.BODY_SHELL:
+        geom = spec.body(body).add_geom(
+            name=name, contype=names.SHELL_CONTYPE, conaffinity=0, condim=3, friction=[0.8, 0.02, 0.001],
+            group=3, mass=0.0, rgba=[0.5, 0.5, 0.5, 0.3],
+        )
+        if shape == "capsule":
+            geom.type = mujoco.mjtGeom.mjGEOM_CAPSULE
+            geom.fromto = [*start, *end]
+            geom.size = [radius, 0.0, 0.0]
+        else:
+            geom.type = mujoco.mjtGeom.mjGEOM_SPHERE
+            geom.pos = list(start)
+            geom.size = [radius, 0.0, 0.0]
 
 
 def build_spec() -> mujoco.MjSpec:
@@ -102,10 +122,12 @@ def build_spec() -> mujoco.MjSpec:
     spec.body(names.RIGHT_HAND_BODY).add_site(name=names.RIGHT_HAND_SITE, pos=list(names.HAND_SITE_IN_WRIST), size=[0.01] * 3)
     spec.body(names.ROOT_BODY).add_site(name=names.IMU_SITE, pos=list(names.IMU_SITE_IN_PELVIS), size=[0.01] * 3)
 
+    _add_body_shell(spec)
+
     world = spec.worldbody
     world.add_geom(
         name=names.FLOOR_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05],
-        friction=[1.0, 0.02, 0.001], rgba=[0.55, 0.6, 0.65, 1.0], contype=1, conaffinity=1,
+        friction=[1.0, 0.02, 0.001], rgba=[0.55, 0.6, 0.65, 1.0], contype=1, conaffinity=1 | names.SHELL_CONTYPE,
     )
     world.add_light(pos=[0, 0, 4], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
     world.add_camera(name="track", pos=[2.2, -2.2, 1.4], xyaxes=[0.707, 0.707, 0, -0.25, 0.25, 0.93],

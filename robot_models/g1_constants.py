@@ -59,6 +59,27 @@ SOLE_CENTER_IN_FOOT: Final = (0.035, 0.0, -0.030)
 SOLE_HALF_SIZE: Final = (0.100, 0.035, 0.005)
 SOLE_SITE_IN_FOOT: Final = (0.035, 0.0, -0.035)
 HAND_SITE_IN_WRIST: Final = (0.10, 0.0, 0.0)
+
+# Body shell: primitive collision geoms that touch only the floor and obstacles (never each
+# other, never the soles), so a fallen robot lies on the floor instead of sinking through it.
+# (geom name, body, shape, size [m], from/centre [m], to [m] or None), in the body's frame; a
+# capsule runs from -> to, a sphere sits at its centre. Standing or walking, none touches the floor.
+SHELL_CONTYPE: Final = 2  # bit of the shell geoms; the floor and obstacles accept it (conaffinity)
+BODY_SHELL: Final = (
+    ("pelvis_shell", "pelvis", "sphere", 0.08, (0.0, 0.0, 0.0), None),
+    ("torso_shell", "torso_link", "capsule", 0.09, (0.0, 0.0, 0.06), (0.0, 0.0, 0.24)),
+    ("head_shell", "torso_link", "sphere", 0.08, (0.0, 0.0, 0.40), None),
+    ("left_thigh_shell", "left_hip_yaw_link", "capsule", 0.05, (0.0, 0.0, 0.04), (-0.078, 0.002, -0.177)),
+    ("right_thigh_shell", "right_hip_yaw_link", "capsule", 0.05, (0.0, 0.0, 0.04), (-0.078, -0.002, -0.177)),
+    ("left_shin_shell", "left_knee_link", "capsule", 0.045, (0.0, 0.0, 0.0), (0.0, 0.0, -0.19)),
+    ("right_shin_shell", "right_knee_link", "capsule", 0.045, (0.0, 0.0, 0.0), (0.0, 0.0, -0.19)),
+    ("left_upper_arm_shell", "left_shoulder_yaw_link", "capsule", 0.04, (0.0, 0.0, 0.0), (0.016, 0.0, -0.081)),
+    ("right_upper_arm_shell", "right_shoulder_yaw_link", "capsule", 0.04, (0.0, 0.0, 0.0), (0.016, 0.0, -0.081)),
+    ("left_forearm_shell", "left_elbow_link", "capsule", 0.035, (0.0, 0.0, 0.0), (0.1, 0.002, -0.01)),
+    ("right_forearm_shell", "right_elbow_link", "capsule", 0.035, (0.0, 0.0, 0.0), (0.1, -0.002, -0.01)),
+    ("left_hand_shell", "left_wrist_yaw_link", "sphere", 0.04, (0.06, 0.0, 0.0), None),
+    ("right_hand_shell", "right_wrist_yaw_link", "sphere", 0.04, (0.06, 0.0, 0.0), None),
+)
 IMU_SITE_IN_PELVIS: Final = (0.04525, 0.0, -0.08339)
 
 # Scenes. "open": the robot on an empty floor. "course": a few static boxes to walk around,

@@ -5,6 +5,10 @@ Nothing here knows about ROS. The sim node is the only caller that steps it.
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
 import mujoco
 import numpy as np
 
@@ -16,6 +20,18 @@ from sim_bridge.state import BaseState, Pose, SimState
 
 
 _BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
+MAX_PUSH_FORCE_N = 5000.0
+MAX_PUSH_TORQUE_NM = 1000.0
+MAX_PUSH_DURATION_S = 10.0
+
+
+@dataclass
+class _Push:
+    """A constant wrench on one body for a number of physics steps still to run."""
+
+    body_id: int
+    wrench: np.ndarray  # force [N] then torque [N m], world frame, at the body's centre of mass
+    steps_left: int
 
 
 def _as_slice(indices: np.ndarray) -> slice | np.ndarray:
@@ -59,6 +75,7 @@ class Simulation:
         self._warnings_seen = 0
         self._warning_counts = self.data.warning.number  # a live view of MuJoCo's counters
         self._phase = 0  # physics steps since the last control update
+        self._pushes: list[_Push] = []
         self.reset(robot.default_keyframe, keep_time=False)
 
     # ----- controllers -------------------------------------------------------------------
@@ -105,11 +122,25 @@ class Simulation:
         """Advance by physics steps, running the controllers at every control-step boundary.
 
         The control grid is kept whatever ``physics_steps`` is: controllers run when the number
-        of physics steps since the last control update reaches the decimation.
+        of physics steps since the last control update reaches the decimation. A push
+        (:meth:`push`) acts for exactly its physics steps, wherever the calls split them.
 
         Raises:
             SimulationFaultError: the physics diverged; call :meth:`reset`.
         """
+        remaining = int(physics_steps)
+        while self._pushes and remaining > 0:
+            span = min(remaining, min(push.steps_left for push in self._pushes))
+            self._step_span(span)
+            remaining -= span
+            for push in self._pushes:
+                push.steps_left -= span
+            self._pushes = [push for push in self._pushes if push.steps_left > 0]
+            self._apply_pushes()
+        if remaining > 0:
+            self._step_span(remaining)
+
+    def _step_span(self, physics_steps: int) -> None:
         remaining = int(physics_steps)
         model, data = self.model, self.data
         if remaining > 0 and not any(c.active for c in self._controllers.values()):
@@ -151,6 +182,47 @@ class Simulation:
             self._warnings_seen = warnings
             raise SimulationFaultError(f"physics diverged at t={self.time:.3f} s (bad accelerations); reset the simulation")
 
+    # ----- external pushes ---------------------------------------------------------------
+    def push(self, body: str, force_n: Sequence[float], torque_nm: Sequence[float], duration_s: float) -> float:
+        """Push a body: a constant force and torque (world frame, at its centre of mass) from now on.
+
+        The wrench acts for ``duration_s`` rounded to whole physics steps (at least one) and adds
+        to any push still acting. Returns the sim time [s] at which it ends.
+
+        Raises:
+            UnknownNameError: no body of that name (nothing is changed).
+            ValueError: a value is not finite or out of range (nothing is changed).
+        """
+        body_id = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, body)
+        if body_id <= 0:  # 0 is the world, which cannot be pushed
+            names = [self.model.body(i).name for i in range(1, self.model.nbody)]
+            raise UnknownNameError(f"unknown body {body!r}; bodies: {', '.join(names)}")
+        force = np.asarray(force_n, dtype=float).reshape(3)
+        torque = np.asarray(torque_nm, dtype=float).reshape(3)
+        if not (np.all(np.isfinite(force)) and np.all(np.isfinite(torque)) and math.isfinite(duration_s)):
+            raise ValueError("force, torque and duration must be finite numbers")
+        if np.linalg.norm(force) > MAX_PUSH_FORCE_N:
+            raise ValueError(f"force {np.linalg.norm(force):.1f} N is too large; allowed: up to {MAX_PUSH_FORCE_N:.0f} N")
+        if np.linalg.norm(torque) > MAX_PUSH_TORQUE_NM:
+            raise ValueError(f"torque {np.linalg.norm(torque):.1f} N m is too large; allowed: up to {MAX_PUSH_TORQUE_NM:.0f} N m")
+        if not 0.0 < duration_s <= MAX_PUSH_DURATION_S:
+            raise ValueError(f"duration must be in (0, {MAX_PUSH_DURATION_S:g}] s of sim time, got {duration_s}")
+        steps = max(1, round(duration_s / self.physics_timestep))
+        self._pushes.append(_Push(body_id, np.concatenate([force, torque]), steps))
+        self._apply_pushes()
+        return self.time + steps * self.physics_timestep
+
+    @property
+    def pushing(self) -> bool:
+        """True while a push acts."""
+        return bool(self._pushes)
+
+    def _apply_pushes(self) -> None:
+        applied = self.data.xfrc_applied
+        applied[:] = 0.0
+        for push in self._pushes:
+            applied[push.body_id] += push.wrench
+
     # ----- reset -------------------------------------------------------------------------
     def reset(self, keyframe: str | None = None, keep_time: bool = True) -> None:
         """Restore a keyframe exactly. Sim time keeps running forward unless ``keep_time`` is false.
@@ -164,6 +236,8 @@ class Simulation:
             raise UnknownNameError(f"unknown keyframe {name!r}; keyframes: {', '.join(self.robot.keyframes)}")
         now = self.data.time
         mujoco.mj_resetDataKeyframe(self.model, self.data, key_id)
+        self._pushes.clear()
+        self.data.xfrc_applied[:] = 0.0
         if keep_time:
             self.data.time = now
         mujoco.mj_forward(self.model, self.data)

@@ -5,6 +5,7 @@
     sim navigate X Y YAW
     sim move-arm X Y Z [--rpy R P Y] [--arm NAME]
     sim pick BOX --place X Y Z
+    sim push FX FY FZ [--duration S] [--body B]  push a body (default: the base) with a force [N]
     sim param get|set|list|describe NODE [NAME] [VALUE]
     sim watch                                    live view of sim time, RTF, base pose, goals
 """
@@ -92,6 +93,23 @@ def _run_goal(client_type: Any, goal: Any, action_label: str, timeout: float) ->
                 if hasattr(outcome.result, name):
                     print(f"  {name}: {getattr(outcome.result, name):.4f}")
         return 0 if outcome.succeeded else 1
+
+
+def _push(options: argparse.Namespace) -> int:
+    from sim_client.session import RosSession, WaitTimeout
+    from sim_interfaces.srv import Push
+
+    request = Push.Request(body=options.body, duration=options.duration)
+    request.wrench.force.x, request.wrench.force.y, request.wrench.force.z = options.force
+    request.wrench.torque.x, request.wrench.torque.y, request.wrench.torque.z = options.torque
+    with RosSession("sim_cli_push", use_sim_time=False) as session:
+        try:
+            response = session.call(Push, "/sim/push", request, timeout=options.timeout)
+        except WaitTimeout as error:
+            print(f"error: {error}", file=sys.stderr)
+            return 2
+    print(response.message if response.success else f"refused: {response.message}")
+    return 0 if response.success else 1
 
 
 def _parse_value(text: str) -> Any:
@@ -230,6 +248,12 @@ def build_parser() -> argparse.ArgumentParser:
     pick.add_argument("--place", type=float, nargs=3, metavar=("X", "Y", "Z"), required=True, help="[m]; Z <= 0 = on the table")
     for p in (walk, nav, move, pick):
         p.add_argument("--server-timeout", type=float, default=30.0, help="wall seconds to wait for the action server")
+    push = sub.add_parser("push", help="push a body with a force [N] (world frame) for a while; e.g. sim push 0 150 0")
+    push.add_argument("force", type=float, nargs=3, metavar=("FX", "FY", "FZ"))
+    push.add_argument("--torque", type=float, nargs=3, default=(0.0, 0.0, 0.0), metavar=("TX", "TY", "TZ"), help="[N m]")
+    push.add_argument("--duration", type=float, default=0.1, help="[s of sim time]")
+    push.add_argument("--body", default="", help="body name; empty = the robot's base body")
+    push.add_argument("--timeout", type=float, default=10.0, help="wall seconds to wait for /sim")
     param = sub.add_parser("param", help="get, set, list or describe a node's parameters")
     param.add_argument("verb", choices=("get", "set", "list", "describe"))
     param.add_argument("node")
@@ -253,6 +277,8 @@ def main(argv: list[str] | None = None) -> int:
         return _param(options)
     if options.command == "watch":
         return _watch(options)
+    if options.command == "push":
+        return _push(options)
     from sim_client.actions import MoveArmClient, NavigateClient, PickPlaceClient, WalkClient
 
     if options.command == "walk":

@@ -40,10 +40,15 @@ def _yaw(sim: Simulation) -> float:
 
 
 def _run(sim: Simulation, controller: WalkingController, seconds: float) -> None:
-    """Step for ``seconds`` of sim time, failing as soon as the robot falls."""
+    """Step for ``seconds`` of sim time, failing as soon as the robot falls or more than its soles touch."""
+    soles = {sim.model.geom(names.LEFT_SOLE_GEOM).id, sim.model.geom(names.RIGHT_SOLE_GEOM).id}
+    floor = sim.model.geom(names.FLOOR_GEOM).id
     for _ in range(round(seconds / sim.control_timestep)):
         sim.step(1)
         assert not controller.status().fallen, f"fell at t={sim.time:.2f} s: {controller.status().message}"
+        for contact in sim.data.contact[: sim.data.ncon]:
+            other = {int(contact.geom1), int(contact.geom2)} - {floor}
+            assert other <= soles, f"{sim.model.geom(other.pop()).name} touched the floor at t={sim.time:.2f} s"
 
 
 def _run_until(sim: Simulation, controller: WalkingController, done: Callable[[], bool], deadline: float) -> None:

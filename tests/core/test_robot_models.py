@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import robot_models
+from robot_models import g1_constants as g1_names
 from sim_bridge import Simulation
 
 HOLD_SECONDS = 10.0
@@ -41,7 +42,38 @@ def test_g1_has_a_floating_base_and_real_soles():
     width = 2 * sole.size[1]
     assert sole.type == mujoco.mjtGeom.mjGEOM_BOX and width >= 0.06, "a sole as wide as a real foot"
     colliding = [model.geom(i).name for i in range(model.ngeom) if model.geom_contype[i] or model.geom_conaffinity[i]]
-    assert sorted(colliding) == ["floor", "left_sole_box", "right_sole_box"]
+    shell = sorted(name for name, *_ in g1_names.BODY_SHELL)
+    assert sorted(colliding) == sorted(["floor", "left_sole_box", "right_sole_box", *shell]), "no mesh collides"
+    soles_and_floor = [model.geom(name).id for name in ("floor", "left_sole_box", "right_sole_box")]
+    assert all(model.geom_contype[i] == 1 for i in soles_and_floor)
+    assert all(model.geom_contype[model.geom(name).id] == g1_names.SHELL_CONTYPE and
+               model.geom_conaffinity[model.geom(name).id] == 0 for name in shell), "the shell touches no body part"
+
+
+def test_a_shoved_g1_falls_and_lies_on_the_floor_without_sinking_into_it():
+    sim = Simulation(robot_models.load("g1"))
+    sim.step(50)
+    sim.push("pelvis", (0.0, 400.0, 0.0), (0.0, 0.0, 0.0), 0.5)
+    sim.step(int(4.0 / sim.control_timestep))
+    z = sim.data.xpos[1:, 2]  # every body's origin
+    pelvis = sim.data.xpos[sim.model.body("pelvis").id, 2]
+    assert pelvis < 0.3, "it fell"
+    assert z.min() > 0.0 and pelvis > 0.05, "it lies on the floor, not in it"
+    shell = {sim.model.geom(name).id for name, *_ in g1_names.BODY_SHELL}
+    touching = {int(c.geom1) for c in sim.data.contact[: sim.data.ncon]} | {int(c.geom2) for c in sim.data.contact[: sim.data.ncon]}
+    assert touching & shell, "the body shell carries it"
+
+
+def test_g1_body_shell_touches_nothing_while_standing():
+    sim = Simulation(robot_models.load("g1"))
+    sim.step(50)
+    floor = sim.model.geom(g1_names.FLOOR_GEOM).id
+    for name, *_ in g1_names.BODY_SHELL:
+        geom = sim.model.geom(name).id
+        assert mujoco.mj_geomDistance(sim.model, sim.data, geom, floor, 1.0, None) > 0.08, name
+    soles = {sim.model.geom(g1_names.LEFT_SOLE_GEOM).id, sim.model.geom(g1_names.RIGHT_SOLE_GEOM).id}
+    for contact in sim.data.contact[: sim.data.ncon]:
+        assert {int(contact.geom1), int(contact.geom2)} - {floor} <= soles
 
 
 def test_panda_scene_has_grasp_settings_and_boxes():

@@ -163,3 +163,48 @@ def test_batched_idle_stepping_keeps_the_control_grid_for_a_controller_that_star
     assert counter.times, "the controller ran"
     assert counter.times[0] >= t0 + 7 * dt - 1e-9
     np.testing.assert_allclose(counter.times, expected, atol=1e-9)
+
+
+def test_a_push_acts_for_exactly_its_duration_and_imparts_its_impulse():
+    sim = Simulation(robot_models.load("panda"))
+    box = sim.robot.objects[0]
+    body = sim.model.body(box)
+    mass = float(body.mass[0])
+    gravity = -float(sim.model.opt.gravity[2])
+    force = 3.0 * mass * gravity  # lifts the box off the table: only gravity and the push act on it
+    sim.step(10)
+    start = sim.time
+    end = sim.push(box, (0.0, 0.0, force), (0.0, 0.0, 0.0), 0.1)
+    assert end == pytest.approx(start + 0.1)
+    while sim.time < end - 1e-9:
+        assert sim.pushing
+        sim.step_physics(3)  # chunks that do not divide the push: it must still end on its step
+    assert not sim.pushing and not np.any(sim.data.xfrc_applied)
+    velocity = sim.data.qvel[sim.model.joint(box).dofadr[0] + 2]
+    # Impulse balance at the push's end (the box flew from its first step): m v = (F - m g) T,
+    # minus the fall during the steps stepped past the end.
+    past = sim.time - end
+    assert velocity == pytest.approx((force / mass - gravity) * 0.1 - gravity * past, rel=0.02)
+
+
+def test_bad_pushes_are_refused_and_change_nothing(panda_sim):
+    before = panda_sim.data.qpos.copy()
+    with pytest.raises(UnknownNameError, match="bodies: .*panda_link0"):
+        panda_sim.push("no_such_body", (1.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.1)
+    for force, torque, duration, reason in [
+        ((math.nan, 0.0, 0.0), (0.0, 0.0, 0.0), 0.1, "finite"),
+        ((1e5, 0.0, 0.0), (0.0, 0.0, 0.0), 0.1, "up to 5000 N"),
+        ((0.0, 0.0, 0.0), (0.0, 0.0, 5e3), 0.1, "up to 1000 N m"),
+        ((1.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0, r"\(0, 10\]"),
+    ]:
+        with pytest.raises(ValueError, match=reason):
+            panda_sim.push(panda_sim.robot.objects[0], force, torque, duration)
+    assert not panda_sim.pushing and not np.any(panda_sim.data.xfrc_applied)
+    np.testing.assert_array_equal(panda_sim.data.qpos, before)
+
+
+def test_reset_ends_a_push(panda_sim):
+    panda_sim.push(panda_sim.robot.objects[0], (0.0, 0.0, 5.0), (0.0, 0.0, 0.0), 1.0)
+    panda_sim.step(1)
+    panda_sim.reset()
+    assert not panda_sim.pushing and not np.any(panda_sim.data.xfrc_applied)

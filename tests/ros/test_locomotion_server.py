@@ -11,7 +11,7 @@ from nav_msgs.msg import Odometry
 
 from nodes.conversions import seconds_of, yaw_of
 from sim_interfaces.action import NavigateToPose, Walk
-from sim_interfaces.srv import Reset
+from sim_interfaces.srv import Push, Reset
 from tests.ros.actions import ready_client, result, send, wait_feedback
 from tests.ros.processes import running
 
@@ -157,6 +157,37 @@ def test_a_new_walk_preempts_the_running_one(client, walk, odom):
     assert first_outcome.result.error_code == Walk.Result.PREEMPTED
     second_outcome = result(client, second, timeout=120.0)
     assert second_outcome.result.error_code == Walk.Result.SUCCESS, second_outcome.result.error_msg
+
+
+def push(client, force_y: float, duration: float = 0.5, body: str = "") -> Push.Response:
+    request = Push.Request(body=body, duration=duration)
+    request.wrench.force.y = force_y
+    return client.call(Push, "/sim/push", request)
+
+
+def test_a_shove_knocks_the_walking_robot_over_and_after_a_reset_it_walks_again(client, walk, odom):
+    reset(client)
+    refused = push(client, 100.0, body="no_such_body")
+    assert not refused.success and "pelvis" in refused.message, refused.message
+    refused = push(client, 1e5)
+    assert not refused.success and "up to 5000 N" in refused.message, refused.message
+
+    sent = send(client, walk, Walk.Goal(distance=3.0, speed=0.3))
+    wait_feedback(client, sent, lambda f: f.distance_walked > 0.3, 120.0, "the walk under way")
+    shove = push(client, 400.0)  # sideways at the pelvis for 0.5 s: no gait absorbs this
+    assert shove.success and shove.end_time == pytest.approx(shove.sim_time + 0.5), shove.message
+    fell = result(client, sent, timeout=120.0)
+    assert fell.result.error_code == Walk.Result.FELL, fell.result.error_msg
+    assert "fell" in fell.result.error_msg
+    client.wait_for(lambda: odom.latest.pose.pose.position.z < 0.3, 60.0, "the robot down")
+    assert odom.latest.pose.pose.position.z > 0.05, "it lies on the floor, not in it"
+
+    reset(client)
+    start = xy(odom.latest)
+    again = result(client, send(client, walk, Walk.Goal(distance=0.5, speed=0.3)), timeout=120.0)
+    assert again.result.error_code == Walk.Result.SUCCESS, again.result.error_msg
+    assert math.dist(start, xy(odom.latest)) == pytest.approx(0.5, rel=0.1)
+    assert odom.latest.pose.pose.position.z > 0.6, "standing after the walk"
 
 
 @pytest.mark.parametrize(

@@ -119,3 +119,10 @@ def test_watch_runs_until_ctrl_c(panda, client):
             command.process.kill()
     assert code == 0, command.output
     assert "sim time" in command.output
+
+
+def test_push_is_applied_or_refused_with_the_allowed_values(panda):
+    pushed = sim("push", "0", "0", "1", "--duration", "0.05")
+    assert pushed.returncode == 0 and "pushing panda_link0 until t=" in pushed.stdout, pushed.stdout + pushed.stderr
+    refused = sim("push", "0", "0", "1", "--duration", "20")
+    assert refused.returncode == 1 and "refused: duration must be in (0, 10]" in refused.stdout, refused.stdout
