@@ -26,12 +26,12 @@ from sim_client.actions import ACTION_CLIENTS, GoalHandle, ParameterError, Param
 from sim_client.processes import running
 from sim_client.scenario import artifacts
 from sim_client.scenario.schema import (
-    CancelStep, CmdVelStep, Comparison, Condition, Expectation, Measure, ResetStep, Scenario, SendGoalStep,
+    CancelStep, CmdVelStep, Comparison, Condition, Expectation, Measure, PushStep, ResetStep, Scenario, SendGoalStep,
     SetParamStep, Step, WaitStep,
 )
 from sim_client.session import RosSession, WaitTimeout
 from sim_interfaces.msg import ObjectStates
-from sim_interfaces.srv import Reset
+from sim_interfaces.srv import Push, Reset
 from sim_interfaces.srv import Step as StepSrv
 
 CHUNK_S = 0.02  # sim time advanced between checks [s]
@@ -156,6 +156,7 @@ class ScenarioRun:
         self.joints = session.record(JointState, "/joint_states", keep=1_000_000)
         self.objects = session.record(ObjectStates, "/objects", keep=1_000_000)
         self._reset = node.create_client(Reset, "/sim/reset")
+        self._push = node.create_client(Push, "/sim/push")
         self._step = node.create_client(StepSrv, "/sim/step")
         self._cmd_vel = node.create_publisher(Twist, "/cmd_vel", 10)
         self.clients: dict[str, _ActionClientBase] = {}
@@ -295,6 +296,19 @@ class ScenarioRun:
             self._set_param(step)
         elif isinstance(step, CmdVelStep):
             self._cmd_vel_for(step)
+        elif isinstance(step, PushStep):
+            self._push_body(step)
+
+    def _push_body(self, step: PushStep) -> None:
+        request = Push.Request(body=step.body, duration=step.duration)
+        request.wrench.force.x, request.wrench.force.y, request.wrench.force.z = step.force
+        request.wrench.torque.x, request.wrench.torque.y, request.wrench.torque.z = step.torque
+        response = self._call(self._push, request, "/sim/push")
+        wanted = "refused" if step.refused else "applied"
+        got = "applied" if response.success else "refused"
+        self.progress.say(f"        push: {got}: {response.message}")
+        self.param_verdicts.append(Verdict(f"{_describe_step(step)} is {wanted}", got == wanted, wanted, got,
+                                           detail=response.message, line=step.line))
 
     def _do_reset(self, keyframe: str) -> None:
         response = self._call(self._reset, Reset.Request(keyframe=keyframe), "/sim/reset")
@@ -599,6 +613,9 @@ def _describe_step(step: Step) -> str:
         return f"set {step.node} {step.name} = {step.value!r}{' (must be refused)' if step.refused else ''}"
     if isinstance(step, CmdVelStep):
         return f"/cmd_vel vx={step.vx:g} vy={step.vy:g} wz={step.wz:g} for {step.duration:g} s"
+    if isinstance(step, PushStep):
+        torque = f" torque {list(step.torque)} N m" if any(step.torque) else ""
+        return f"push {step.body or 'the base'} with {list(step.force)} N{torque} for {step.duration:g} s"
     return type(step).__name__
 
 

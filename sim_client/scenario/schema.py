@@ -387,6 +387,20 @@ class CmdVelStep(Step):
 
 
 @dataclass(frozen=True)
+class PushStep(Step):
+    """Push a body (/sim/push): a force and torque, world frame, for ``duration`` sim seconds.
+
+    ``refused`` says the sim must refuse it (a bad value), as with ``set_param``.
+    """
+
+    body: str = ""
+    force: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    torque: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    duration: float = 0.1
+    refused: bool = False
+
+
+@dataclass(frozen=True)
 class Expectation:
     """A named check: a measure compared with a value, or a goal's outcome."""
 
@@ -537,7 +551,7 @@ def _parse_trigger(ctx: _Ctx, raw: Any, line: int, what: str) -> Trigger:
 
 
 # ----- steps --------------------------------------------------------------------------------
-STEP_KINDS = ("reset", "wait", "send_goal", "cancel", "set_param", "cmd_vel")
+STEP_KINDS = ("reset", "wait", "send_goal", "cancel", "set_param", "cmd_vel", "push")
 
 
 def _parse_step(ctx: _Ctx, raw: Any, line: int, robot: str, index: int) -> Step:
@@ -601,6 +615,13 @@ def _parse_step(ctx: _Ctx, raw: Any, line: int, robot: str, index: int) -> Step:
         refused = f.boolean("refused", False)
         f.done()
         return SetParamStep(at, mark, node, name, value, refused)  # type: ignore[arg-type]
+    if kind == "push":
+        f = _Fields(ctx, body, what, at)
+        step = PushStep(at, mark, f.string("body", ""), f.vector("force", 3, required=True, unit=" [N]"),  # type: ignore[arg-type]
+                        f.vector("torque", 3, unit=" [N m]") or (0.0, 0.0, 0.0),
+                        f.number("duration", required=True, unit=" [s of sim time]"), f.boolean("refused", False))  # type: ignore[arg-type]
+        f.done()
+        return step
     f = _Fields(ctx, body, what, at)  # cmd_vel
     if robot != "g1":
         raise ctx.error(at, f"{what}: /cmd_vel drives a walking robot; robot {robot} has none")

@@ -72,6 +72,9 @@ def test_a_good_file_loads_into_typed_values(tmp_path):
         (GOOD.replace("  - wait: {duration: 0.5}", "  - send_goal: {id: m, action: move_arm, goal: {position: [1, 2]}}"), 4,
          "position must be a list of 3 numbers"),
         (GOOD.replace("  - wait: {duration: 0.5}", "  - cancel: {goal: nope}"), 4, "goal 'nope' is not sent by an earlier step"),
+        (GOOD.replace("  - wait: {duration: 0.5}", "  - push: {force: [1, 2], duration: 0.1}"), 4,
+         "force must be a list of 3 numbers [N]"),
+        (GOOD.replace("  - wait: {duration: 0.5}", "  - push: {force: [1, 2, 3]}"), 4, "missing required key 'duration'"),
         (GOOD.replace("    measure: {object_position: {object: box_0, axis: z}}",
                       "    measure: {duration: {from: nowhere}}"), 7, "unknown mark 'nowhere'"),
         (GOOD.replace("robot: panda", "robot: [panda"), 3, "not valid YAML"),  # where the parser notices
