@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import rclpy
 from geometry_msgs.msg import Pose as PoseMsg
+from lifecycle_msgs.srv import ChangeState
 from geometry_msgs.msg import TransformStamped, Twist
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Odometry
@@ -99,6 +100,7 @@ class SimNode(LifecycleNode):
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self.context.on_shutdown(self._stop_thread)
+        _refuse_unavailable_transitions(self)
 
     def _param(self, name: str):
         return self.get_parameter(name).value
@@ -145,6 +147,13 @@ class SimNode(LifecycleNode):
 
     # ----- lifecycle ---------------------------------------------------------------------
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        if self.sim is not None:  # configured before, then cleaned up: the same scene from its keyframe
+            with self._lock:
+                self.sim.reset()
+                assert self.plugins is not None
+                self.plugins.on_reset()
+            self._pacer.reanchor()
+            return TransitionCallbackReturn.SUCCESS
         name = str(self._param("robot"))
         try:
             robot = robot_models.load(name, str(self._param("scene")) or None)
@@ -493,6 +502,30 @@ class SimNode(LifecycleNode):
     def destroy(self) -> None:
         self._stop_thread()
         self.destroy_node()
+
+
+def _refuse_unavailable_transitions(node: LifecycleNode) -> None:
+    """Answer a transition the current state does not have with success=false, and log what is allowed.
+
+    rclpy's ``~/change_state`` raises inside the executor on a transition id that is not
+    available (``ros2 lifecycle`` checks first; other clients may not), which ends the process.
+    """
+    service = next(s for s in node.services if s.srv_name.endswith("/change_state"))
+    handle = service.callback
+
+    def change_state(request: ChangeState.Request, response: ChangeState.Response) -> ChangeState.Response:
+        available = {t[0]: t[1] for t in node._state_machine.available_transitions}
+        label = request.transition.label
+        if (label and label not in available.values()) or (not label and request.transition.id not in available):
+            state = node._state_machine.current_state[1]
+            node.get_logger().warning(
+                f"refused lifecycle transition {label or request.transition.id!r} from state {state!r}; "
+                f"available: {', '.join(f'{name} ({tid})' for tid, name in available.items())}")
+            response.success = False
+            return response
+        return handle(request, response)
+
+    service.callback = change_state
 
 
 def _float64_array(values: np.ndarray) -> array.array:

@@ -29,3 +29,41 @@ def test_panda_publishes_its_joints_and_the_boxes(client):
 
         client.wait_for(lambda: ("world", "box_1") in frames() and ("panda_link0", "panda_link1") in frames(),
                         30.0, "/tf with the boxes and the links")
+
+
+def test_lifecycle_transitions_through_the_standard_services(client):
+    from lifecycle_msgs.msg import Transition
+    from lifecycle_msgs.srv import ChangeState, GetState
+    from rosgraph_msgs.msg import Clock
+
+    def state() -> str:
+        return client.call(GetState, "/sim/get_state", GetState.Request(), timeout=STARTUP_S).current_state.label
+
+    def change(transition: int, label: str = "") -> bool:
+        request = ChangeState.Request(transition=Transition(id=transition, label=label))
+        return client.call(ChangeState, "/sim/change_state", request, timeout=STARTUP_S).success
+
+    def sim_time(msg: Clock) -> float:
+        return msg.clock.sec + msg.clock.nanosec * 1e-9
+
+    args = ["sim_node", "--ros-args", "-p", "robot:=panda", "-p", "autostart:=false", "-p", "real_time_factor:=0.0"]
+    with running(args) as process:
+        clock = client.record(Clock, "/clock", keep=10)
+        assert state() == "unconfigured"
+        assert not change(Transition.TRANSITION_ACTIVATE), "activate is not a transition of unconfigured"
+        assert not change(0, "fly")
+        assert process.alive() and state() == "unconfigured", "a refused transition leaves the node serving"
+
+        assert change(Transition.TRANSITION_CONFIGURE) and state() == "inactive"
+        assert change(Transition.TRANSITION_ACTIVATE) and state() == "active"
+        client.wait_for(lambda: clock.count > 5, STARTUP_S, "/clock once active")
+
+        assert change(Transition.TRANSITION_DEACTIVATE) and state() == "inactive"  # a round trip: in-flight /clock lands
+        stopped_at, count = sim_time(clock.latest), clock.count
+        assert state() == "inactive" and clock.count == count, "no /clock while inactive (unpaced, it would flood)"
+
+        assert change(Transition.TRANSITION_CLEANUP) and state() == "unconfigured"
+        assert change(Transition.TRANSITION_CONFIGURE) and change(Transition.TRANSITION_ACTIVATE)
+        client.wait_for(lambda: clock.count > count + 5, STARTUP_S, "/clock after reactivation")
+        assert sim_time(clock.latest) > stopped_at, "sim time keeps running forward"
+        assert change(Transition.TRANSITION_ACTIVE_SHUTDOWN) and state() == "finalized"
