@@ -129,23 +129,30 @@ class LocomotionServer(Node):
         self._cmd_pub.publish(msg)
 
     def _wait_inputs(self) -> tuple[Odometry, LocomotionState] | None:
-        """Fresh /odom (published after the goal arrived, so never from before a reset) and a state as new.
+        """The first /odom to arrive after the goal, and a controller state at least as new.
 
         /sim publishes the odometry and the controller state of an instant one after the other, on
-        two topics: when the odometry arrives, that instant's state may still be on its way and the
-        state at hand may be from before a reset (e.g. "fallen"). So the state must carry a stamp at
-        least as late as the odometry's.
+        two topics: when the odometry arrives, that instant's state may still be on its way, so the
+        state must carry a stamp at least as late as the odometry's. Both may still predate a reset
+        the client made just before sending the goal, when this node's queue lags: a position jump
+        is caught by the supervisor (the goal starts over), a fall must hold FRESH_START_S first.
         """
         deadline = time.monotonic() + ACK_TIMEOUT_S
         odom = None
         while odom is None and time.monotonic() < deadline:
             if self._odom.wait_next(0.1):
                 odom = self._odom.get()
+        first: float | None = None
         while odom is not None and time.monotonic() < deadline:
             state = self._state.get()
             if state is not None and seconds_of(state.header.stamp) >= seconds_of(odom.header.stamp):
-                return odom, state
-            self._state.wait_next(0.1)
+                # "Fallen" at the very start may still be news from before a reset that this node's
+                # queue has not caught up with: believe it once it has held FRESH_START_S of sim time.
+                first = seconds_of(odom.header.stamp) if first is None else first
+                if not self._fallen(odom, state) or seconds_of(odom.header.stamp) - first > FRESH_START_S:
+                    return odom, state
+            if self._state.wait_next(0.1):
+                odom = self._odom.get() or odom
         return None
 
     @staticmethod

@@ -181,6 +181,8 @@ def test_a_shove_knocks_the_walking_robot_over_and_after_a_reset_it_walks_again(
     assert "fell" in fell.result.error_msg
     client.wait_for(lambda: odom.latest.pose.pose.position.z < 0.3, 60.0, "the robot down")
     assert odom.latest.pose.pose.position.z > 0.05, "it lies on the floor, not in it"
+    down = result(client, send(client, walk, Walk.Goal(distance=0.5)), timeout=60.0)
+    assert down.result.error_code == Walk.Result.FELL and "reset" in down.result.error_msg, down.result.error_msg
 
     reset(client)
     start = xy(odom.latest)
