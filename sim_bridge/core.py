@@ -135,8 +135,9 @@ class Simulation:
             remaining -= span
             for push in self._pushes:
                 push.steps_left -= span
+                if push.steps_left == 0:
+                    self.data.xfrc_applied[push.body_id] -= push.wrench
             self._pushes = [push for push in self._pushes if push.steps_left > 0]
-            self._apply_pushes()
         if remaining > 0:
             self._step_span(remaining)
 
@@ -208,20 +209,15 @@ class Simulation:
         if not 0.0 < duration_s <= MAX_PUSH_DURATION_S:
             raise ValueError(f"duration must be in (0, {MAX_PUSH_DURATION_S:g}] s of sim time, got {duration_s}")
         steps = max(1, round(duration_s / self.physics_timestep))
-        self._pushes.append(_Push(body_id, np.concatenate([force, torque]), steps))
-        self._apply_pushes()
+        push = _Push(body_id, np.concatenate([force, torque]), steps)
+        self._pushes.append(push)
+        self.data.xfrc_applied[body_id] += push.wrench  # on top of what others apply; taken off when it ends
         return self.time + steps * self.physics_timestep
 
     @property
     def pushing(self) -> bool:
         """True while a push acts."""
         return bool(self._pushes)
-
-    def _apply_pushes(self) -> None:
-        applied = self.data.xfrc_applied
-        applied[:] = 0.0
-        for push in self._pushes:
-            applied[push.body_id] += push.wrench
 
     # ----- reset -------------------------------------------------------------------------
     def reset(self, keyframe: str | None = None, keep_time: bool = True) -> None:
