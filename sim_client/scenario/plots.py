@@ -43,6 +43,11 @@ def make_plots(run: Any, folder: pathlib.Path) -> list[pathlib.Path]:
         ahead = [np.interp(odom.t[inside] + half, odom.t, odom.values[:, k]) for k in (0, 1)]
         behind = [np.interp(odom.t[inside] - half, odom.t, odom.values[:, k]) for k in (0, 1)]
         speed = np.hypot(ahead[0] - behind[0], ahead[1] - behind[1]) / (2 * half)
+        # A reset moves the base farther between two samples than any walk: no pace across it.
+        step = np.hypot(np.diff(odom.values[:, 0]), np.diff(odom.values[:, 1]))
+        jumps = odom.t[1:][step > 0.25 + 2.0 * np.diff(odom.t)]
+        for jump in jumps:
+            speed[np.abs(odom.t[inside] - jump) <= half + 1e-9] = np.nan
         axes[0].plot(speed_t, speed, label="measured pace (displacement over 0.5 s)")
         for event in run.param_events:
             if event["name"] == "walking_speed" and event["accepted"]:
