@@ -27,6 +27,7 @@ from rclpy.parameter import Parameter, parameter_value_to_python
 
 from sim_client.session import RosSession, WaitTimeout
 from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, Walk
+from sim_interfaces.srv import Push
 
 GoalT = TypeVar("GoalT")
 FeedbackT = TypeVar("FeedbackT")
@@ -236,6 +237,15 @@ def _pose(x: float, y: float, z: float, roll: float = 0.0, pitch: float = 0.0, y
     q.y = cr * sp * cy + sr * cp * sy
     q.z = cr * cp * sy - sr * sp * cy
     return pose
+
+
+def push_request(body: str, force_n: tuple[float, float, float], torque_nm: tuple[float, float, float],
+                 duration_s: float) -> Push.Request:
+    """A ``/sim/push`` request: force [N] and torque [N m] in the world frame; empty body = the base."""
+    request = Push.Request(body=body, duration=float(duration_s))
+    request.wrench.force.x, request.wrench.force.y, request.wrench.force.z = map(float, force_n)
+    request.wrench.torque.x, request.wrench.torque.y, request.wrench.torque.z = map(float, torque_nm)
+    return request
 
 
 class MoveArmClient(_ActionClientBase[MoveArm.Goal, MoveArm.Feedback, MoveArm.Result]):

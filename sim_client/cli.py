@@ -96,12 +96,11 @@ def _run_goal(client_type: Any, goal: Any, action_label: str, timeout: float) ->
 
 
 def _push(options: argparse.Namespace) -> int:
+    from sim_client.actions import push_request
     from sim_client.session import RosSession, WaitTimeout
     from sim_interfaces.srv import Push
 
-    request = Push.Request(body=options.body, duration=options.duration)
-    request.wrench.force.x, request.wrench.force.y, request.wrench.force.z = options.force
-    request.wrench.torque.x, request.wrench.torque.y, request.wrench.torque.z = options.torque
+    request = push_request(options.body, options.force, options.torque, options.duration)
     with RosSession("sim_cli_push", use_sim_time=False) as session:
         try:
             response = session.call(Push, "/sim/push", request, timeout=options.timeout)

@@ -22,7 +22,7 @@ from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-from sim_client.actions import ACTION_CLIENTS, GoalHandle, ParameterError, Parameters, _ActionClientBase
+from sim_client.actions import ACTION_CLIENTS, GoalHandle, ParameterError, Parameters, _ActionClientBase, push_request
 from sim_client.processes import running
 from sim_client.scenario import artifacts
 from sim_client.scenario.schema import (
@@ -300,10 +300,7 @@ class ScenarioRun:
             self._push_body(step)
 
     def _push_body(self, step: PushStep) -> None:
-        request = Push.Request(body=step.body, duration=step.duration)
-        request.wrench.force.x, request.wrench.force.y, request.wrench.force.z = step.force
-        request.wrench.torque.x, request.wrench.torque.y, request.wrench.torque.z = step.torque
-        response = self._call(self._push, request, "/sim/push")
+        response = self._call(self._push, push_request(step.body, step.force, step.torque, step.duration), "/sim/push")
         wanted = "refused" if step.refused else "applied"
         got = "applied" if response.success else "refused"
         self.progress.say(f"        push: {got}: {response.message}")

@@ -36,16 +36,19 @@ class LiveCommand:
     def output(self) -> str:
         return "\n".join(self.lines)
 
-    def finish(self, timeout: float) -> int:
-        """The exit code once the command has ended and its output is read (killed after ``timeout`` s)."""
+    def interrupt_when(self, client, ready, what: str, timeout: float, exit_timeout: float) -> int:
+        """Once ``ready()`` holds, Ctrl-C the command; its exit code (killed if it is still running after)."""
         try:
-            code = self.process.wait(timeout)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-            self.process.wait()
-            raise
-        self._reader.join(timeout)
-        return code
+            client.wait_for(lambda: ready() or self.process.poll() is not None, timeout, what)
+            assert self.process.poll() is None, self.output
+            self.process.send_signal(signal.SIGINT)
+            code = self.process.wait(exit_timeout)
+            self._reader.join(exit_timeout)
+            return code
+        finally:
+            if self.process.poll() is None:
+                self.process.kill()
+                self.process.wait()
 
 
 @pytest.fixture(scope="module")
@@ -90,16 +93,11 @@ def test_move_arm_streams_feedback_until_the_result(panda):
 
 def test_ctrl_c_cancels_the_running_goal(panda, client):
     assert sim("param", "set", "arm", "max_velocity_scaling", "0.05").returncode == 0  # a slow move to interrupt
-    command = LiveCommand("move-arm", "0.3", "-0.3", "0.5")
     try:
-        client.wait_for(lambda: any("position_error=" in line for line in command.lines) or command.process.poll() is not None,
-                        60.0, "feedback of the move")
-        assert command.process.poll() is None, command.output
-        command.process.send_signal(signal.SIGINT)
-        code = command.finish(30.0)
+        command = LiveCommand("move-arm", "0.3", "-0.3", "0.5")
+        code = command.interrupt_when(client, lambda: any("position_error=" in line for line in command.lines),
+                                      "feedback of the move", 60.0, 30.0)
     finally:
-        if command.process.poll() is None:
-            command.process.kill()
         assert sim("param", "set", "arm", "max_velocity_scaling", "0.5").returncode == 0
     assert code == 1, command.output
     assert "canceling the goal" in command.output
@@ -108,15 +106,8 @@ def test_ctrl_c_cancels_the_running_goal(panda, client):
 
 def test_watch_runs_until_ctrl_c(panda, client):
     command = LiveCommand("watch")
-    try:
-        client.wait_for(lambda: "sim_watch" in client.node.get_node_names() or command.process.poll() is not None,
-                        30.0, "the watch node in the ROS graph")
-        assert command.process.poll() is None, command.output
-        command.process.send_signal(signal.SIGINT)
-        code = command.finish(15.0)
-    finally:
-        if command.process.poll() is None:
-            command.process.kill()
+    code = command.interrupt_when(client, lambda: "sim_watch" in client.node.get_node_names(),
+                                  "the watch node in the ROS graph", 30.0, 15.0)
     assert code == 0, command.output
     assert "sim time" in command.output
 
