@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import time
 
 import pytest
 from action_msgs.msg import GoalStatus
@@ -108,11 +109,15 @@ def test_cmd_vel_turns_the_robot_in_place_by_ninety_degrees(client, odom, g1):
     start_yaw, start_xy = yaw(odom.latest), xy(odom.latest)
     command = Twist()
     turned = lambda: abs(math.remainder(yaw(odom.latest) - start_yaw, 2 * math.pi))  # noqa: E731
+    polled_at: list[float] = []
     try:
         def turning() -> bool:
-            # Slow down as the heading approaches 90 degrees, as a client steering by odometry does.
+            # Slow down as the heading approaches 90 degrees, as a client steering by odometry does. The gentle
+            # gain (0.6 /s) keeps the heading within the tolerance even if this client is descheduled for up to
+            # about 1 s of wall time on a loaded machine (the sim runs at 2x), during which its last command holds.
+            polled_at.append(time.monotonic())
             remaining = math.radians(90) - turned()
-            command.angular.z = min(0.5, max(0.08, 1.2 * remaining))
+            command.angular.z = min(0.5, max(0.08, 0.6 * remaining))
             publisher.publish(command)
             return remaining <= math.radians(2)
 
@@ -120,13 +125,16 @@ def test_cmd_vel_turns_the_robot_in_place_by_ninety_degrees(client, odom, g1):
     finally:
         publisher.publish(Twist())
     stop_time = seconds_of(odom.latest.header.stamp)
+    longest_gap = max(b - a for a, b in zip(polled_at, polled_at[1:]))
 
     def still() -> bool:
         publisher.publish(Twist())
         return seconds_of(odom.latest.header.stamp) > stop_time + 3.0
 
     client.wait_for(still, 60.0, "the robot to stop", poll=0.05)
-    assert turned() == pytest.approx(math.radians(90), abs=math.radians(10))
+    assert turned() == pytest.approx(math.radians(90), abs=math.radians(10)), (
+        f"heading after stopping; the steering client's longest gap between commands was {longest_gap:.2f} s wall"
+    )
     assert math.dist(start_xy, xy(odom.latest)) < 0.25, "turned in place"
     assert odom.latest.pose.pose.position.z > 0.6
     client.node.destroy_publisher(publisher)
