@@ -46,8 +46,12 @@ def odom(client, g1):
     return recorder
 
 
-def reset(client) -> None:
-    assert client.call(Reset, "/sim/reset", Reset.Request()).success
+def reset(client, odom) -> None:
+    """Reset the sim and wait until the odometry this process holds is from after the reset (a loaded machine can
+    leave pre-reset messages in flight for a while)."""
+    response = client.call(Reset, "/sim/reset", Reset.Request())
+    assert response.success, response.message
+    client.wait_for(lambda: seconds_of(odom.latest.header.stamp) > response.sim_time, 30.0, "odometry after the reset")
 
 
 def pace(odom_messages: list[Odometry], t0: float, t1: float) -> float:
@@ -58,7 +62,7 @@ def pace(odom_messages: list[Odometry], t0: float, t1: float) -> float:
 
 
 def test_walk_two_metres_forward_then_half_a_metre_back(client, walk, odom):
-    reset(client)
+    reset(client, odom)
     start = xy(odom.latest)
     sent = send(client, walk, Walk.Goal(distance=2.0, speed=0.3))
     assert sent.handle.accepted
@@ -77,7 +81,7 @@ def test_walk_two_metres_forward_then_half_a_metre_back(client, walk, odom):
 
 
 def test_walking_speed_changes_the_pace_mid_walk(client, walk, odom):
-    reset(client)
+    reset(client, odom)
     assert client.set_parameter("locomotion", "walking_speed", 0.2)[0]
     try:
         sent = send(client, walk, Walk.Goal(distance=5.0))
@@ -107,7 +111,7 @@ def test_walking_speed_out_of_range_is_refused_with_the_range(client, g1):
 
 
 def test_cmd_vel_turns_the_robot_in_place_by_ninety_degrees(client, odom, g1):
-    reset(client)
+    reset(client, odom)
     publisher = client.node.create_publisher(Twist, "/cmd_vel", 10)
     start_yaw, start_xy = yaw(odom.latest), xy(odom.latest)
     command = Twist()
@@ -144,7 +148,7 @@ def test_cmd_vel_turns_the_robot_in_place_by_ninety_degrees(client, odom, g1):
 
 
 def test_cancel_stops_the_walk_and_the_robot_stands(client, walk, odom):
-    reset(client)
+    reset(client, odom)
     sent = send(client, walk, Walk.Goal(distance=3.0, speed=0.3))
     wait_feedback(client, sent, lambda f: f.distance_walked > 0.4, 120.0, "the walk to be under way")
     sent.cancel()
@@ -159,7 +163,7 @@ def test_cancel_stops_the_walk_and_the_robot_stands(client, walk, odom):
 
 
 def test_a_new_walk_preempts_the_running_one(client, walk, odom):
-    reset(client)
+    reset(client, odom)
     first = send(client, walk, Walk.Goal(distance=3.0, speed=0.3))
     wait_feedback(client, first, lambda f: f.distance_walked > 0.2, 120.0, "the first walk to be under way")
     second = send(client, walk, Walk.Goal(distance=0.5, speed=0.3))
@@ -177,7 +181,7 @@ def push(client, force_y: float, duration: float = 0.5, body: str = "") -> Push.
 
 
 def test_a_shove_knocks_the_walking_robot_over_and_after_a_reset_it_walks_again(client, walk, odom):
-    reset(client)
+    reset(client, odom)
     refused = push(client, 100.0, body="no_such_body")
     assert not refused.success and "pelvis" in refused.message, refused.message
     refused = push(client, 1e5)
@@ -195,7 +199,7 @@ def test_a_shove_knocks_the_walking_robot_over_and_after_a_reset_it_walks_again(
     down = result(client, send(client, walk, Walk.Goal(distance=0.5)), timeout=60.0)
     assert down.result.error_code == Walk.Result.FELL and "reset" in down.result.error_msg, down.result.error_msg
 
-    reset(client)
+    reset(client, odom)
     start = xy(odom.latest)
     again = result(client, send(client, walk, Walk.Goal(distance=0.5, speed=0.3)), timeout=120.0)
     assert again.result.error_code == Walk.Result.SUCCESS, again.result.error_msg
