@@ -14,7 +14,7 @@ from sim_bridge import Pose, Simulation, Slot, UnknownNameError
 from sim_bridge.arm import (
     ArmController, ArmMode, PickPlace, PickPlaceFailure, PickPlaceGoal, PickPlaceStage, solve_ik,
 )
-from sim_bridge.arm.kinematics import quat_to_mat
+from sim_bridge.arm.kinematics import OFFLINE_DT, ArmKinematics, quat_to_mat
 from sim_bridge.errors import InvalidGoalError
 
 TOOL_DOWN = np.array([0.0, 1.0, 0.0, 0.0])  # tool z axis pointing at the table
@@ -259,3 +259,104 @@ def test_g1_right_arm_reaches_while_standing(g1):
     assert abs(after.position[2] - pelvis.position[2]) < 0.01
     # The legs are plain PD servos (no balance loop): the arm motion makes the body sway by about a degree.
     assert abs(_tilt_deg(after) - _tilt_deg(pelvis)) < 2.0, _tilt_deg(after)
+
+
+# ----- pinned behaviour of the IK tick -------------------------------------------------------------
+# Recorded with the mink.solve_ik implementation of the tracking loop (before the arm-only QP):
+# measured arm joint positions [rad] mid-motion and after arrival of three Panda moves (the last one
+# 3 cm above the table, where the collision limit is active), and of one G1 right-arm reach.
+PANDA_MOVES = [((0.5, 0.2, 0.3), 0.3), ((0.4, -0.3, 0.15), -0.5), ((0.55, -0.1, 0.03), 0.0)]
+PANDA_REFERENCE_Q = [
+    [0.0363043114890333, -0.6977854932293404, 0.04898161807227216, -2.3797113840238167, 0.030918013789797076, 1.6908389943724205, 0.8021804015138048],
+    [0.1904819445283996, 0.001512786296130546, 0.19008587384890022, -2.141246243162898, -0.0003397736528366497, 2.142731588756163, 0.8661522241596948],
+    [0.16429292473965718, -0.028618845208922793, 0.1713288911474294, -2.2018594136815954, 0.006467112945510656, 2.171325529726756, 0.8602636884303086],
+    [-0.36264760712283894, 0.15743196963916878, -0.27536635075303917, -2.397515883496651, 0.07626815875094234, 2.547761652835699, 0.5874391168353043],
+    [-0.3121673302295488, 0.23494448749283808, -0.1867984334925798, -2.3847379739108137, 0.09026836995423075, 2.6206048681763905, 0.5768141934205768],
+    [-0.17093061699086784, 0.5612908646274087, -0.0079626968851923, -2.156938149702933, 0.010314783328112365, 2.7181933897345996, 0.5983249588200644],
+]
+PANDA_REFERENCE_TOOL = [0.5499984167300606, -0.10000009722286976, 0.030006033406905247]
+G1_REFERENCE_Q = [
+    [0.03849669005064728, -0.24031567432395098, 0.011172803789425052, 0.7408240006887307, 0.005944536615353811, 0.13655154601550307, -0.004789778131959592],
+    [-0.2643570795231991, -0.22690011950966657, 0.009485198343639804, 0.05137414961029437, 0.04381364900981174, 1.0931432042004527, -0.06035396833706433],
+]
+PICK_REFERENCE_END_TIME = 9.292  # [s]
+PICK_REFERENCE_BOX = [0.40018514739274097, 0.2999597538815929, 0.01996072516015629]
+PINNED_Q_TOLERANCE = 1e-6  # [rad]
+
+
+def test_panda_tracking_matches_the_recorded_reference(panda_sim):
+    sim, arm = panda_sim
+    adr = arm.arms["arm"].qpos_adr
+    measured = []
+    for position, yaw in PANDA_MOVES:
+        arm.set_target("arm", Pose(np.array(position), _tool_down(yaw)), False, 0.5, 1.5)
+        sim.step(100)  # mid-motion
+        measured.append(sim.data.qpos[adr].copy())
+        sim.step(400)  # arrived
+        measured.append(sim.data.qpos[adr].copy())
+    np.testing.assert_allclose(measured, PANDA_REFERENCE_Q, rtol=0.0, atol=PINNED_Q_TOLERANCE)
+    np.testing.assert_allclose(sim.data.site(panda_constants.TCP_SITE).xpos, PANDA_REFERENCE_TOOL, rtol=0.0, atol=1e-6)
+
+
+def test_g1_tracking_matches_the_recorded_reference(g1):
+    sim = Simulation(g1)
+    arm = ArmController(g1)
+    sim.set_controller(Slot.ARM, arm)
+    sim.step(125)
+    adr = arm.arms["right_arm"].qpos_adr
+    start = arm.status("right_arm").tool_pose
+    arm.set_target("right_arm", Pose(start.position + np.array([0.15, 0.05, 0.15]), start.orientation_wxyz), False, 0.15, 0.5)
+    sim.step(150)
+    measured = [sim.data.qpos[adr].copy()]
+    sim.step(350)
+    measured.append(sim.data.qpos[adr].copy())
+    np.testing.assert_allclose(measured, G1_REFERENCE_Q, rtol=0.0, atol=PINNED_Q_TOLERANCE)
+
+
+def test_pick_and_place_matches_the_recorded_reference(panda_sim):
+    sim, arm = panda_sim
+    skill = PickPlace(arm)
+    sim.set_controller(Slot.ARM, skill)
+    progress, _, _ = _pick_place(sim, skill, PickPlaceGoal("box_1", (0.4, 0.3, 0.0)))
+    assert progress.success, progress.reason
+    assert sim.time == pytest.approx(PICK_REFERENCE_END_TIME, abs=1e-9)  # the same control step ends it
+    np.testing.assert_allclose(sim.data.body("box_1").xpos, PICK_REFERENCE_BOX, rtol=0.0, atol=1e-5)
+
+
+@pytest.mark.parametrize(("robot_name", "arm_name"), [("panda", "arm"), ("g1", "right_arm")])
+@pytest.mark.parametrize("kind", ["tracking", "offline"])
+def test_arm_only_ik_step_equals_mink_solve_ik(robot_name, arm_name, kind, panda, g1):
+    """The arm-only QP gives the displacement of mink.solve_ik on the full problem (frozen DoFs by equality)."""
+    import mink
+
+    robot = panda if robot_name == "panda" else g1
+    kinematics = ArmKinematics(robot)
+    problem = (kinematics.tracking if kind == "tracking" else kinematics.offline)[arm_name]
+    info = problem.info
+    dt = robot.control_timestep / kinematics.config.max_ik_iterations_per_tick if kind == "tracking" else OFFLINE_DT
+    frozen = np.setdiff1d(np.arange(problem.model.nv), info.dof_adr)
+    lower, upper = problem.model.jnt_range[[problem.model.joint(j).id for j in info.joints]].T
+    rng = np.random.default_rng(7)
+    with_collision_rows = 0
+    for trial in range(60):
+        qpos = kinematics.posture_qpos.copy()
+        qpos[info.qpos_adr] = lower + (upper - lower) * rng.uniform(0.05, 0.95, size=len(info.joints))
+        if robot_name == "panda" and trial % 2:  # the hand a few cm above the table: collision rows
+            low = Pose(np.array([rng.uniform(0.35, 0.6), rng.uniform(-0.3, 0.3), rng.uniform(0.01, 0.05)]), TOOL_DOWN)
+            qpos[info.qpos_adr] = kinematics.solve(arm_name, kinematics.posture_qpos, low, False).positions
+        problem.set_configuration(qpos)
+        tool = problem.tool_pose()
+        if robot_name == "panda":  # low targets bring the hand near the table
+            position = np.array([rng.uniform(0.3, 0.65), rng.uniform(-0.35, 0.35), rng.uniform(0.0, 0.3)])
+        else:
+            position = tool.position + rng.uniform(-0.2, 0.2, size=3)
+        problem.set_target(Pose(position, TOOL_DOWN if robot_name == "panda" else tool.orientation_wxyz), trial % 3 == 0)
+        velocity = problem.velocity(dt)
+        assert velocity is not None
+        expected = mink.solve_ik(problem.configuration, [problem.frame_task, problem.posture_task], dt, "daqp",
+                                 damping=1e-9, limits=problem.limits, constraints=problem.constraints)
+        np.testing.assert_allclose(expected[frozen], 0.0, atol=1e-12)
+        np.testing.assert_allclose(velocity * dt, expected[info.dof_adr] * dt, rtol=0.0, atol=1e-9)
+        constraint = problem.collision_limit.compute_qp_inequalities(problem.configuration, dt)
+        with_collision_rows += int(np.isfinite(constraint.h).any())
+    assert with_collision_rows >= 5  # the collision rows were exercised
