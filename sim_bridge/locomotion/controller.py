@@ -8,6 +8,11 @@ acceleration; the torque QP (:mod:`sim_bridge.locomotion.wbc`) turns it into leg
 While walking, the leg and waist actuators are switched from position servos to torque motors (their
 gains are restored when the robot stands still again, holding the pose it stopped in). The floating
 base is never written: the robot moves only through its feet pushing on the floor.
+
+Cost per control step: the plan is rebuilt from this step's measurements (its inputs, the measured
+stance sole and the rate-limited command, move every step), in float arithmetic on (x, y) tuples and
+one preallocated :class:`ZmpPreview`; its DCM is integrated once per step and serves both the
+tracking and the step adjustment. The QP is reduced and warm-started (see :mod:`.wbc`).
 """
 
 from __future__ import annotations
@@ -23,14 +28,15 @@ from sim_bridge.errors import InvalidGoalError
 from sim_bridge.locomotion.params import GaitParameters
 from sim_bridge.locomotion.planner import (
     Footstep,
+    Point,
     Side,
-    ZmpSegment,
-    clip_to_polygon,
-    convex_hull,
-    dcm_reference,
     SwingSample,
-    rotation,
+    ZmpPreview,
+    clip_point,
+    hull_of,
+    rotate,
     swing_sample,
+    unrotate,
     wrap_angle,
 )
 from sim_bridge.locomotion.types import LocomotionMode, LocomotionStatus, Twist2D
@@ -62,6 +68,10 @@ HANDOVER_SPEED = 0.03  # CoM speed below which standing is handed back to the po
 HANDOVER_DELAY = 0.5  # time standing still before the hand-over [s]
 VELOCITY_FILTER_TIME = 0.5  # [s]
 
+Velocity = tuple[float, float, float]  # (vx [m/s], vy [m/s], wz [rad/s]) in the heading frame
+_ZERO: Velocity = (0.0, 0.0, 0.0)
+_CORNER_SIGNS = ((1, 1), (1, -1), (-1, 1), (-1, -1))
+
 
 class _Phase(enum.Enum):
     IDLE = "idle"  # position servos hold the stance; the controller does not run
@@ -73,12 +83,18 @@ class _Phase(enum.Enum):
     FALLEN = "fallen"
 
 
-def _yaw_of(mat: np.ndarray) -> float:
-    return math.atan2(mat[3], mat[0])
-
-
 def _mid_angle(a: float, b: float) -> float:
     return a + 0.5 * wrap_angle(b - a)
+
+
+def _midpoint(a: Point, b: Point) -> Point:
+    return 0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])
+
+
+def _frame_of(step: Footstep) -> Point:
+    """The walking frame (midpoint between the feet) that puts this sole at its nominal place [m]."""
+    dx, dy = rotate(step.yaw, 0.0, step.side.sign * HALF_STEP_WIDTH)
+    return step.x - dx, step.y - dy
 
 
 class WalkingController:
@@ -101,7 +117,7 @@ class WalkingController:
         base_joint = model.body_jntadr[self._pelvis]
         self._base_qpos = int(model.jnt_qposadr[base_joint])
         self._base_dof = int(model.jnt_dofadr[base_joint])
-        self._sole_site = {Side.LEFT: model.site(names.LEFT_SOLE_SITE).id, Side.RIGHT: model.site(names.RIGHT_SOLE_SITE).id}
+        self._sole_site = (model.site(names.LEFT_SOLE_SITE).id, model.site(names.RIGHT_SOLE_SITE).id)
         self._posture = np.zeros(len(MOTOR_JOINTS))
         for i, joint in enumerate(MOTOR_JOINTS):
             for key, value in WALK_CROUCH.items():
@@ -110,9 +126,10 @@ class WalkingController:
         self._com_height = self._crouch_com_height(model)
         self._omega = math.sqrt(GRAVITY / self._com_height)
         self._jac_com = np.zeros((3, model.nv))
+        self._preview = ZmpPreview()
+        self._sole_half = (names.SOLE_HALF_SIZE[0] - SUPPORT_MARGIN, names.SOLE_HALF_SIZE[1] - SUPPORT_MARGIN)
         self._data: mujoco.MjData | None = None
-        self._target = np.zeros(3)
-        self._tick_times: list[float] = []
+        self._target: Velocity = _ZERO
         self._init_state()
 
     # ----- public API -------------------------------------------------------------------
@@ -130,21 +147,13 @@ class WalkingController:
         # Called every control step by the simulation: plain comparisons only.
         phase = self._phase
         if phase is _Phase.IDLE:
-            return self._has_target
+            return self._target != _ZERO
         return phase is not _Phase.FALLEN
 
     @property
-    def _has_target(self) -> bool:
-        return self._target_nonzero
-
-    @property
-    def _target(self) -> np.ndarray:
-        return self._target_value
-
-    @_target.setter
-    def _target(self, value: np.ndarray) -> None:
-        self._target_value = value
-        self._target_nonzero = bool(np.any(value != 0.0))
+    def qp_fallback_count(self) -> int:
+        """Control steps in which the torque QP failed and the previous contact forces were reused."""
+        return self._wbc.fallback_count
 
     def set_velocity_command(self, vx: float, vy: float, wz: float) -> None:
         """Command a walking velocity in the base heading frame; zero stops and stands with the feet together.
@@ -163,11 +172,11 @@ class WalkingController:
         if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
             raise InvalidGoalError(f"velocity command {values} must be three finite numbers")
         forward, backward, lateral, yaw_rate = self._params.speed_limits
-        self._target = np.array([
+        self._target = (
             min(max(float(vx), -backward), forward),
             min(max(float(vy), -lateral), lateral),
             min(max(float(wz), -yaw_rate), yaw_rate),
-        ])
+        )
 
     def set_gait_parameters(self, params: GaitParameters) -> None:
         """Apply new gait parameters; they take effect from the next phase of the gait.
@@ -182,26 +191,25 @@ class WalkingController:
 
     def status(self) -> LocomotionStatus:
         """The current mode, step count, command and measured velocity."""
-        if self._phase != _Phase.FALLEN and self._data is not None and self._has_fallen(self._data):
+        if self._phase is not _Phase.FALLEN and self._data is not None and self._has_fallen(self._data):
             self._fall_message = "fell while holding the stance"
             self._phase = _Phase.FALLEN
         if not self.active and self._data is not None:
             self._measured = self._instant_velocity(self._data)
-        stopping = not np.any(self._target != 0.0)
-        if self._phase == _Phase.FALLEN:
+        if self._phase is _Phase.FALLEN:
             mode, message = LocomotionMode.FALLEN, self._fall_message + "; reset the simulation"
-        elif self._phase in (_Phase.IDLE, _Phase.BALANCE):
+        elif self._phase is _Phase.IDLE or self._phase is _Phase.BALANCE:
             mode, message = LocomotionMode.STANDING, "standing"
-        elif stopping:
+        elif self._target == _ZERO:
             mode, message = LocomotionMode.STOPPING, "stopping: closing the feet"
         else:
             mode, message = LocomotionMode.WALKING, "walking"
         return LocomotionStatus(
             mode=mode,
             steps_taken=self._steps,
-            commanded=Twist2D(*map(float, self._target)),
-            measured=Twist2D(*map(float, self._measured)),
-            fallen=self._phase == _Phase.FALLEN,
+            commanded=Twist2D(*self._target),
+            measured=Twist2D(*self._measured),
+            fallen=self._phase is _Phase.FALLEN,
             message=message,
         )
 
@@ -209,7 +217,8 @@ class WalkingController:
         """Forget the gait, restore the position servos (the keyframe's ctrl holds the stance), zero the command."""
         self._restore_servos(model)
         self._data = data
-        self._target = np.zeros(3)
+        self._target = _ZERO
+        self._wbc.reset()
         self._init_state()
 
     def release(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
@@ -218,32 +227,32 @@ class WalkingController:
         Call this before removing the controller from the simulation while it is active;
         otherwise the leg actuators would stay in torque mode.
         """
-        if self._phase not in (_Phase.IDLE, _Phase.FALLEN):
+        if self._phase is not _Phase.IDLE and self._phase is not _Phase.FALLEN:
             self._hold_current_pose(model, data)
-        self._target = np.zeros(3)
+        self._target = _ZERO
         self._init_state()
 
     def update(self, model: mujoco.MjModel, data: mujoco.MjData, control_dt: float) -> None:
         """One control step: fall check, gait state machine, DCM tracking, torque QP, write torques."""
         self._data = data
         self._dt = control_dt
-        if self._phase == _Phase.FALLEN:
+        if self._phase is _Phase.FALLEN:
             return
         if self._has_fallen(data):
             self._fall_message = f"fell at t={data.time:.2f} s"
             self._phase = _Phase.FALLEN
             self._hold_current_pose(model, data)
             return
-        if self._phase == _Phase.IDLE:
+        if self._phase is _Phase.IDLE:
             self._start_torque_control(model, data)
         self._filter_command(control_dt)
-        self._update_stopping()
+        self._stopping = self._target == _ZERO and self._velocity == _ZERO
         self._measure(data, control_dt)
-        self._advance_phase(data, control_dt)
-        if self._phase == _Phase.IDLE:
+        feet = self._feet(data)
+        self._advance_phase(data, feet, control_dt)
+        if self._phase is _Phase.IDLE:
             return
-        targets = self._targets(model, data)
-        tau = self._wbc.solve(model, data, targets)
+        tau = self._wbc.solve(model, data, self._targets(model, data, feet))
         self._last_tau = tau
         data.ctrl[self._motor_actuators] = tau
         self._maybe_hand_over(model, data)
@@ -253,24 +262,24 @@ class WalkingController:
         self._phase = _Phase.IDLE
         self._phase_time = 0.0
         self._phase_duration = 0.0
-        self._velocity = np.zeros(3)  # rate-limited command
+        self._velocity: Velocity = _ZERO  # rate-limited command
         self._stopping = False
-        self._measured = np.zeros(3)
+        self._measured: Velocity = _ZERO
         self._steps = 0
         self._stance = Side.RIGHT
-        self._zmp_start = np.zeros(2)
-        self._frame_pos = np.zeros(2)  # planned walking frame (midpoint between the feet) [m]
+        self._zmp_start: Point = (0.0, 0.0)
+        self._frame_pos: Point = (0.0, 0.0)  # planned walking frame (midpoint between the feet) [m]
         self._frame_yaw = 0.0
-        self._step_frame_pos = np.zeros(2)
+        self._step_frame_pos: Point = (0.0, 0.0)
         self._step_frame_yaw = 0.0
-        self._swing_start = np.zeros(3)
+        self._swing_start = (0.0, 0.0, 0.0)  # sole position at lift-off [m]
         self._swing_start_yaw = 0.0
-        self._swing_target = Footstep(Side.LEFT, np.zeros(2), 0.0)  # nominal landing of the current swing
+        self._swing_target = Footstep(Side.LEFT, 0.0, 0.0, 0.0)  # nominal landing of the current swing
         self._swing_landing: Footstep | None = None  # the nominal target moved by step adjustment
         self._swing_closing = False
         self._landed_closing = False
         self._speed_correction = 0.0
-        self._touchdown_com = np.zeros(2)
+        self._touchdown_com: Point = (0.0, 0.0)
         self._touchdown_time = 0.0
         self._still_time = 0.0
         self._time = 0.0
@@ -286,7 +295,7 @@ class WalkingController:
         data.qpos[self._motor_qpos] = self._posture
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
-        sole = min(data.site_xpos[s][2] for s in self._sole_site.values())
+        sole = min(data.site_xpos[s][2] for s in self._sole_site)
         return float(data.subtree_com[self._pelvis][2] - sole)
 
     # ----- actuator modes ---------------------------------------------------------------
@@ -295,12 +304,12 @@ class WalkingController:
         model.actuator_gainprm[ids] = 0.0
         model.actuator_gainprm[ids, 0] = 1.0
         model.actuator_biasprm[ids] = 0.0
-        feet = self._feet(data)
-        self._frame_yaw = _mid_angle(feet[Side.LEFT].yaw, feet[Side.RIGHT].yaw)
-        self._frame_pos = 0.5 * (feet[Side.LEFT].position + feet[Side.RIGHT].position)
-        self._velocity = np.zeros(3)
+        left, right = self._feet(data)
+        self._frame_yaw = _mid_angle(left.yaw, right.yaw)
+        self._frame_pos = _midpoint((left.x, left.y), (right.x, right.y))
+        self._velocity = _ZERO
         self._enter(_Phase.BALANCE, 0.0)
-        self._zmp_start = self._frame_pos.copy()
+        self._zmp_start = self._frame_pos
 
     def _restore_servos(self, model: mujoco.MjModel) -> None:
         model.actuator_gainprm[self._motor_actuators] = self._saved_gain
@@ -311,7 +320,7 @@ class WalkingController:
         data.ctrl[self._motor_actuators] = data.qpos[self._motor_qpos]
 
     def _maybe_hand_over(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
-        if self._phase != _Phase.BALANCE or np.any(self._target != 0.0) or self._still_time < HANDOVER_DELAY:
+        if self._phase is not _Phase.BALANCE or self._target != _ZERO or self._still_time < HANDOVER_DELAY:
             return
         kp = self._saved_gain[:, 0]
         self._restore_servos(model)
@@ -324,35 +333,44 @@ class WalkingController:
         up_z = data.xmat[self._pelvis][8]
         return bool(height < FALL_HEIGHT or up_z < math.cos(FALL_TILT))
 
-    def _feet(self, data: mujoco.MjData) -> dict[Side, Footstep]:
-        return {
-            side: Footstep(side, data.site_xpos[site][:2].copy(), _yaw_of(data.site_xmat[site]))
-            for side, site in self._sole_site.items()
-        }
+    def _feet(self, data: mujoco.MjData) -> tuple[Footstep, Footstep]:
+        """The measured soles (left, right): centre (x, y) [m] and yaw [rad] in world."""
+        left, right = self._sole_site
+        xpos, xmat = data.site_xpos, data.site_xmat
+        lp, lm = xpos[left], xmat[left]
+        rp, rm = xpos[right], xmat[right]
+        return (
+            Footstep(Side.LEFT, float(lp[0]), float(lp[1]), math.atan2(lm[3], lm[0])),
+            Footstep(Side.RIGHT, float(rp[0]), float(rp[1]), math.atan2(rm[3], rm[0])),
+        )
 
-    def _com_state(self, model: mujoco.MjModel, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
-        mujoco.mj_jacSubtreeCom(model, data, self._jac_com, self._pelvis)
-        return data.subtree_com[self._pelvis].copy(), self._jac_com @ data.qvel
-
-    def _instant_velocity(self, data: mujoco.MjData) -> np.ndarray:
+    def _instant_velocity(self, data: mujoco.MjData) -> Velocity:
         """Pelvis (vx, vy) in its heading frame [m/s] and yaw rate [rad/s]."""
-        yaw = _yaw_of(data.xmat[self._pelvis])
-        linear = rotation(yaw).T @ data.qvel[self._base_dof : self._base_dof + 2]
-        yaw_rate = (data.xmat[self._pelvis].reshape(3, 3) @ data.qvel[self._base_dof + 3 : self._base_dof + 6])[2]
-        return np.array([linear[0], linear[1], yaw_rate])
+        mat = data.xmat[self._pelvis]
+        qvel = data.qvel
+        b = self._base_dof
+        vx, vy = unrotate(math.atan2(mat[3], mat[0]), float(qvel[b]), float(qvel[b + 1]))
+        yaw_rate = mat[6] * qvel[b + 3] + mat[7] * qvel[b + 4] + mat[8] * qvel[b + 5]
+        return vx, vy, float(yaw_rate)
 
     def _measure(self, data: mujoco.MjData, dt: float) -> None:
         alpha = min(1.0, dt / VELOCITY_FILTER_TIME)
-        self._measured += alpha * (self._instant_velocity(data) - self._measured)
+        now = self._instant_velocity(data)
+        old = self._measured
+        self._measured = (
+            old[0] + alpha * (now[0] - old[0]), old[1] + alpha * (now[1] - old[1]), old[2] + alpha * (now[2] - old[2])
+        )
 
     def _filter_command(self, dt: float) -> None:
+        """Move the walking velocity toward the command at the gait's acceleration limits."""
         p = self._params
-        step = np.array([p.max_acceleration, p.max_acceleration, p.max_yaw_acceleration]) * dt
-        self._velocity += np.clip(self._target - self._velocity, -step, step)
-
-    def _update_stopping(self) -> None:
-        """Stopping: zero command and the rate-limited velocity has reached zero (refreshed every tick)."""
-        self._stopping = not np.any(self._target != 0.0) and not np.any(self._velocity != 0.0)
+        linear, angular = p.max_acceleration * dt, p.max_yaw_acceleration * dt
+        (vx, vy, wz), (tx, ty, tz) = self._velocity, self._target
+        self._velocity = (
+            vx + min(max(tx - vx, -linear), linear),
+            vy + min(max(ty - vy, -linear), linear),
+            wz + min(max(tz - wz, -angular), angular),
+        )
 
     # ----- gait state machine -----------------------------------------------------------
     def _enter(self, phase: _Phase, duration: float) -> None:
@@ -360,69 +378,74 @@ class WalkingController:
         self._phase_time = 0.0
         self._phase_duration = duration
 
-    def _advance_phase(self, data: mujoco.MjData, dt: float) -> None:
+    def _advance_phase(self, data: mujoco.MjData, feet: tuple[Footstep, Footstep], dt: float) -> None:
         self._time += dt
         self._phase_time += dt
-        feet = self._feet(data)
-        if self._phase == _Phase.BALANCE:
-            if np.any(self._target != 0.0):
-                lead = Side.RIGHT if (self._target[1] < 0 or (self._target[1] == 0 and self._target[2] < 0)) else Side.LEFT
+        phase = self._phase
+        if phase is _Phase.BALANCE:
+            target = self._target
+            if target != _ZERO:
+                lead = Side.RIGHT if (target[1] < 0 or (target[1] == 0 and target[2] < 0)) else Side.LEFT
+                left, right = feet
                 self._stance = lead.other
-                self._zmp_start = self._balance_zmp(feet)
-                self._frame_yaw = _mid_angle(feet[Side.LEFT].yaw, feet[Side.RIGHT].yaw)
-                self._frame_pos = 0.5 * (feet[Side.LEFT].position + feet[Side.RIGHT].position)
+                self._zmp_start = _midpoint((left.x, left.y), (right.x, right.y))
+                self._frame_yaw = _mid_angle(left.yaw, right.yaw)
+                self._frame_pos = self._zmp_start
                 self._speed_correction = 0.0
                 self._still_time = 0.0
                 self._enter(_Phase.SHIFT, SHIFT_DURATION)
             return
-        if self._phase == _Phase.SHIFT:
+        if phase is _Phase.SHIFT:
             if self._stopping:
-                shift = self._segments(feet)[0]
-                progress = min(self._phase_time / max(shift.duration, 1e-6), 1.0)
-                self._zmp_start = shift.start + progress * (shift.end - shift.start)
+                # Freeze the ZMP where the shift toward the stance sole has brought it.
+                stance = feet[self._stance.index]
+                progress = min(self._phase_time / max(self._phase_duration, 1e-6), 1.0)
+                sx, sy = self._zmp_start
+                self._zmp_start = (sx + progress * (stance.x - sx), sy + progress * (stance.y - sy))
                 self._enter(_Phase.SETTLE, SETTLE_DURATION)
             elif self._phase_time >= self._phase_duration:
-                self._touchdown_com = data.subtree_com[self._pelvis][:2].copy()
+                com = data.subtree_com[self._pelvis]
+                self._touchdown_com = (float(com[0]), float(com[1]))
                 self._touchdown_time = self._time
                 self._begin_single(data, feet)
             return
-        if self._phase == _Phase.SINGLE:
+        if phase is _Phase.SINGLE:
             if self._phase_time < SWING_FREEZE * self._phase_duration:
                 self._swing_target, self._swing_closing = self._next_footstep(
-                    self._step_frame_pos, self._step_frame_yaw, self._stance.other, feet[self._stance]
+                    self._step_frame_pos, self._step_frame_yaw, self._stance.other, feet[self._stance.index]
                 )
             if self._phase_time >= self._phase_duration:
                 self._touchdown(data, feet)
             return
-        if self._phase == _Phase.DOUBLE:
+        if phase is _Phase.DOUBLE:
             if self._phase_time >= self._phase_duration:
                 if self._stopping and self._landed_closing:
-                    self._zmp_start = feet[self._stance].position.copy()
+                    stance = feet[self._stance.index]
+                    self._zmp_start = (stance.x, stance.y)
                     self._enter(_Phase.SETTLE, SETTLE_DURATION)
                 else:
                     self._begin_single(data, feet)
             return
-        if self._phase == _Phase.SETTLE:
+        if phase is _Phase.SETTLE:
             if self._phase_time >= self._phase_duration:
                 self._enter(_Phase.BALANCE, 0.0)
-                self._zmp_start = self._balance_zmp(feet)
+                left, right = feet
+                self._zmp_start = _midpoint((left.x, left.y), (right.x, right.y))
             return
 
-    def _balance_zmp(self, feet: dict[Side, Footstep]) -> np.ndarray:
-        return 0.5 * (feet[Side.LEFT].position + feet[Side.RIGHT].position)
-
-    def _begin_single(self, data: mujoco.MjData, feet: dict[Side, Footstep]) -> None:
+    def _begin_single(self, data: mujoco.MjData, feet: tuple[Footstep, Footstep]) -> None:
         swing = self._stance.other
-        site = self._sole_site[swing]
-        self._swing_start = data.site_xpos[site].copy()
-        self._swing_start_yaw = feet[swing].yaw
+        position = data.site_xpos[self._sole_site[swing.index]]
+        self._swing_start = (float(position[0]), float(position[1]), float(position[2]))
+        self._swing_start_yaw = feet[swing.index].yaw
         # Walking frame at the start of this step: measured from the stance sole, with the lateral
         # error against the planned path partly removed (line keeping) and the planned heading.
-        stance = feet[self._stance]
-        measured = stance.position - rotation(stance.yaw) @ np.array([0.0, self._stance.sign * HALF_STEP_WIDTH])
-        error = rotation(self._frame_yaw).T @ (measured - self._frame_pos)
-        error[1] *= 1.0 - LINE_KEEPING
-        self._step_frame_pos = self._frame_pos + rotation(self._frame_yaw) @ error
+        stance = feet[self._stance.index]
+        mx, my = _frame_of(stance)
+        fx, fy = self._frame_pos
+        forward, lateral = unrotate(self._frame_yaw, mx - fx, my - fy)
+        dx, dy = rotate(self._frame_yaw, forward, lateral * (1.0 - LINE_KEEPING))
+        self._step_frame_pos = (fx + dx, fy + dy)
         self._step_frame_yaw = self._frame_yaw
         self._swing_target, self._swing_closing = self._next_footstep(
             self._step_frame_pos, self._step_frame_yaw, swing, stance
@@ -430,192 +453,217 @@ class WalkingController:
         self._swing_landing = None
         self._enter(_Phase.SINGLE, self._params.step_duration)
 
-    def _touchdown(self, data: mujoco.MjData, feet: dict[Side, Footstep]) -> None:
+    def _touchdown(self, data: mujoco.MjData, feet: tuple[Footstep, Footstep]) -> None:
         target = self._swing_target
         self._steps += 1
         self._frame_yaw = target.yaw
-        self._frame_pos = target.position - rotation(target.yaw) @ np.array([0.0, target.side.sign * HALF_STEP_WIDTH])
+        self._frame_pos = _frame_of(target)
         self._landed_closing = self._swing_closing
         # Speed integral: measured CoM advance over the last step against the command.
-        com = data.subtree_com[self._pelvis][:2]
+        position = data.subtree_com[self._pelvis]
+        com = (float(position[0]), float(position[1]))
         elapsed = self._time - self._touchdown_time
         if elapsed > 0 and not self._stopping and self._velocity[0] != 0.0:
-            speed = float((rotation(self._frame_yaw).T @ (com - self._touchdown_com))[0]) / elapsed
-            self._speed_correction += SPEED_INTEGRAL_GAIN * (self._velocity[0] - speed) * self._params.step_period
-            self._speed_correction = float(np.clip(self._speed_correction, -SPEED_INTEGRAL_LIMIT, SPEED_INTEGRAL_LIMIT))
+            advance, _ = unrotate(self._frame_yaw, com[0] - self._touchdown_com[0], com[1] - self._touchdown_com[1])
+            speed = advance / elapsed
+            correction = self._speed_correction + SPEED_INTEGRAL_GAIN * (self._velocity[0] - speed) * self._params.step_period
+            self._speed_correction = min(max(correction, -SPEED_INTEGRAL_LIMIT), SPEED_INTEGRAL_LIMIT)
         elif self._velocity[0] == 0.0:
             self._speed_correction = 0.0
-        self._touchdown_com = com.copy()
+        self._touchdown_com = com
         self._touchdown_time = self._time
-        self._zmp_start = feet[self._stance].position.copy()
+        stance = feet[self._stance.index]
+        self._zmp_start = (stance.x, stance.y)
         self._stance = target.side
         self._enter(_Phase.DOUBLE, self._params.double_support_duration)
 
     # ----- footsteps ----------------------------------------------------------------------
-    def _advance_frame(
-        self, frame_pos: np.ndarray, frame_yaw: float, swing: Side, velocity: np.ndarray
-    ) -> tuple[np.ndarray, float]:
+    def _advance_frame(self, frame_pos: Point, frame_yaw: float, swing: Side, velocity: Velocity) -> tuple[Point, float]:
+        """The walking frame one step later [m, rad]."""
         period = self._params.step_period
         turn = velocity[2] * period
         forward = velocity[0] * period + (self._speed_correction if velocity[0] != 0.0 else 0.0)
         lateral = 2.0 * velocity[1] * period if velocity[1] * swing.sign > 0 else 0.0
-        new_pos = frame_pos + rotation(frame_yaw + 0.5 * turn) @ np.array([forward, lateral])
-        return new_pos, frame_yaw + turn
+        dx, dy = rotate(frame_yaw + 0.5 * turn, forward, lateral)
+        return (frame_pos[0] + dx, frame_pos[1] + dy), frame_yaw + turn
 
-    def _place(self, frame_pos: np.ndarray, frame_yaw: float, swing: Side, stance: Footstep) -> Footstep:
-        position = frame_pos + rotation(frame_yaw) @ np.array([0.0, swing.sign * HALF_STEP_WIDTH])
-        return Footstep(swing, self._clip_reach(position, swing, stance), frame_yaw)
+    def _place(self, frame_pos: Point, frame_yaw: float, swing: Side, stance: Footstep) -> Footstep:
+        dx, dy = rotate(frame_yaw, 0.0, swing.sign * HALF_STEP_WIDTH)
+        x, y = self._clip_reach(frame_pos[0] + dx, frame_pos[1] + dy, swing, stance)
+        return Footstep(swing, x, y, frame_yaw)
 
     @staticmethod
-    def _clip_reach(position: np.ndarray, swing: Side, stance: Footstep) -> np.ndarray:
-        """The nearest sole position within the swing leg's reach box around the stance sole [m]."""
-        turn = rotation(stance.yaw)
-        relative = turn.T @ (position - stance.position)
-        forward = min(max(relative[0], REACH_X[0]), REACH_X[1])
-        outward = min(max(swing.sign * relative[1], REACH_LATERAL[0]), REACH_LATERAL[1])
-        return stance.position + turn @ np.array([forward, swing.sign * outward])
+    def _clip_reach(x: float, y: float, swing: Side, stance: Footstep) -> Point:
+        """The nearest sole position to (x, y) within the swing leg's reach box around the stance sole [m]."""
+        forward, left = unrotate(stance.yaw, x - stance.x, y - stance.y)
+        forward = min(max(forward, REACH_X[0]), REACH_X[1])
+        outward = min(max(swing.sign * left, REACH_LATERAL[0]), REACH_LATERAL[1])
+        dx, dy = rotate(stance.yaw, forward, swing.sign * outward)
+        return stance.x + dx, stance.y + dy
 
-    def _next_footstep(
-        self, frame_pos: np.ndarray, frame_yaw: float, swing: Side, stance: Footstep
-    ) -> tuple[Footstep, bool]:
+    def _next_footstep(self, frame_pos: Point, frame_yaw: float, swing: Side, stance: Footstep) -> tuple[Footstep, bool]:
         """The next landing of ``swing`` and whether it is a closing (zero-velocity) step."""
         footstep, closing, _, _ = self._next_footstep_and_frame(frame_pos, frame_yaw, swing, stance)
         return footstep, closing
 
     def _next_footstep_and_frame(
-        self, frame_pos: np.ndarray, frame_yaw: float, swing: Side, stance: Footstep
-    ) -> tuple[Footstep, bool, np.ndarray, float]:
-        velocity = np.zeros(3) if self._stopping else self._velocity
+        self, frame_pos: Point, frame_yaw: float, swing: Side, stance: Footstep
+    ) -> tuple[Footstep, bool, Point, float]:
+        velocity = _ZERO if self._stopping else self._velocity
         new_pos, new_yaw = self._advance_frame(frame_pos, frame_yaw, swing, velocity)
-        return self._place(new_pos, new_yaw, swing, stance), not np.any(velocity != 0.0), new_pos, new_yaw
+        return self._place(new_pos, new_yaw, swing, stance), velocity == _ZERO, new_pos, new_yaw
 
-    def _segments(self, feet: dict[Side, Footstep]) -> list[ZmpSegment]:
+    def _fill_preview(self, feet: tuple[Footstep, Footstep]) -> None:
+        """Refill :attr:`_preview` with the ZMP reference from now to the horizon (or to standing)."""
+        preview = self._preview
+        preview.clear()
         p = self._params
         t_ss, t_ds = p.step_duration, p.double_support_duration
-        segments: list[ZmpSegment] = []
-        stance = feet[self._stance]
+        stance = feet[self._stance.index]
+        here = (stance.x, stance.y)
         phase = self._phase
-        if phase == _Phase.BALANCE:
-            return [ZmpSegment(1.0, self._zmp_start, self._zmp_start)]
-        if phase == _Phase.SETTLE:
-            mid = self._balance_zmp(feet)
-            return [ZmpSegment(self._phase_duration, self._zmp_start, mid), ZmpSegment(1.0, mid, mid)]
-        if phase == _Phase.SHIFT:
-            segments.append(ZmpSegment(self._phase_duration, self._zmp_start, stance.position))
-            segments.append(ZmpSegment(t_ss, stance.position, stance.position))
+        if phase is _Phase.BALANCE:
+            preview.add(1.0, self._zmp_start, self._zmp_start)
+            return
+        if phase is _Phase.SETTLE:
+            mid = _midpoint((feet[0].x, feet[0].y), (feet[1].x, feet[1].y))
+            preview.add(self._phase_duration, self._zmp_start, mid)
+            preview.add(1.0, mid, mid)
+            return
+        if phase is _Phase.SHIFT:
+            preview.add(self._phase_duration, self._zmp_start, here)
+            preview.add(t_ss, here, here)
             frame_pos, frame_yaw = self._frame_pos, self._frame_yaw
             support = stance
             closing = False
-        elif phase == _Phase.SINGLE:
-            segments.append(ZmpSegment(self._phase_duration, stance.position, stance.position))
+        elif phase is _Phase.SINGLE:
+            preview.add(self._phase_duration, here, here)
             target = self._swing_target
-            segments.append(ZmpSegment(t_ds, stance.position, target.position))
+            landing = (target.x, target.y)
+            preview.add(t_ds, here, landing)
             if self._stopping and self._swing_closing:
-                mid = 0.5 * (stance.position + target.position)
-                return segments + [ZmpSegment(SETTLE_DURATION, target.position, mid), ZmpSegment(1.0, mid, mid)]
-            segments.append(ZmpSegment(t_ss, target.position, target.position))
-            frame_pos = target.position - rotation(target.yaw) @ np.array([0.0, target.side.sign * HALF_STEP_WIDTH])
-            frame_yaw = target.yaw
+                mid = _midpoint(here, landing)
+                preview.add(SETTLE_DURATION, landing, mid)
+                preview.add(1.0, mid, mid)
+                return
+            preview.add(t_ss, landing, landing)
+            frame_pos, frame_yaw = _frame_of(target), target.yaw
             support = target
             closing = self._swing_closing
         else:  # DOUBLE
-            segments.append(ZmpSegment(self._phase_duration, self._zmp_start, stance.position))
-            previous = self._zmp_start
+            preview.add(self._phase_duration, self._zmp_start, here)
             if self._stopping and self._landed_closing:
-                mid = 0.5 * (previous + stance.position)
-                return segments + [ZmpSegment(SETTLE_DURATION, stance.position, mid), ZmpSegment(1.0, mid, mid)]
-            segments.append(ZmpSegment(t_ss, stance.position, stance.position))
+                mid = _midpoint(self._zmp_start, here)
+                preview.add(SETTLE_DURATION, here, mid)
+                preview.add(1.0, mid, mid)
+                return
+            preview.add(t_ss, here, here)
             frame_pos, frame_yaw = self._frame_pos, self._frame_yaw
             support = stance
             closing = False
-        total = sum(s.duration for s in segments) - self._phase_time
+        total = sum(preview.durations) - self._phase_time
         while total < HORIZON:
-            swing = support.side.other
             if self._stopping and closing:
                 break
-            footstep, closing, frame_pos, frame_yaw = self._next_footstep_and_frame(frame_pos, frame_yaw, swing, support)
-            segments.append(ZmpSegment(t_ds, support.position, footstep.position))
-            segments.append(ZmpSegment(t_ss, footstep.position, footstep.position))
+            footstep, closing, frame_pos, frame_yaw = self._next_footstep_and_frame(
+                frame_pos, frame_yaw, support.side.other, support
+            )
+            landing = (footstep.x, footstep.y)
+            preview.add(t_ds, (support.x, support.y), landing)
+            preview.add(t_ss, landing, landing)
             total += t_ds + t_ss
             support = footstep
         if self._stopping and closing:
-            last = segments[-1].end
-            before = segments[-2].start
-            mid = 0.5 * (last + before)
-            segments.append(ZmpSegment(SETTLE_DURATION, last, mid))
-            segments.append(ZmpSegment(1.0, mid, mid))
-        return segments
+            last = (preview.end_x[-1], preview.end_y[-1])
+            mid = _midpoint(last, (preview.start_x[-2], preview.start_y[-2]))
+            preview.add(SETTLE_DURATION, last, mid)
+            preview.add(1.0, mid, mid)
 
-    def _adjusted_landing(
-        self, segments: list[ZmpSegment], stance: Footstep, cop: np.ndarray, dcm: np.ndarray
-    ) -> Footstep:
+    def _adjusted_landing(self, stance: Footstep, cop: Point, dcm: Point, planned_dcm: Point) -> Footstep:
         """Step adjustment: move the landing by the predicted end-of-step DCM error.
 
-        The error is measured against the unadjusted plan (``segments`` are built from the nominal
-        target), so the adjustment does not cancel itself.
+        The error is measured against the unadjusted plan (``planned_dcm``, the end-of-swing DCM of
+        the preview built from the nominal target), so the adjustment does not cancel itself.
         """
         target = self._swing_target
         remaining = max(self._phase_duration - self._phase_time, 0.0)
-        predicted = cop + math.exp(self._omega * remaining) * (dcm - cop)
-        reference = dcm_reference(segments, self._phase_duration, self._omega).dcm
-        offset = predicted - reference
-        size = float(np.linalg.norm(offset))
+        growth = math.exp(self._omega * remaining)
+        offset_x = cop[0] + growth * (dcm[0] - cop[0]) - planned_dcm[0]
+        offset_y = cop[1] + growth * (dcm[1] - cop[1]) - planned_dcm[1]
+        size = math.sqrt(offset_x * offset_x + offset_y * offset_y)
         if size <= STEP_ADJUST_DEADBAND:
             return target
-        offset *= (size - STEP_ADJUST_DEADBAND) / size
-        position = self._clip_reach(target.position + offset, target.side, stance)
-        return Footstep(target.side, position, target.yaw)
+        scale = (size - STEP_ADJUST_DEADBAND) / size
+        x, y = self._clip_reach(target.x + offset_x * scale, target.y + offset_y * scale, target.side, stance)
+        return Footstep(target.side, x, y, target.yaw)
 
     # ----- tasks ------------------------------------------------------------------------
-    def _support_hull(self, data: mujoco.MjData, sides: tuple[Side, ...]) -> np.ndarray:
-        hx = names.SOLE_HALF_SIZE[0] - SUPPORT_MARGIN
-        hy = names.SOLE_HALF_SIZE[1] - SUPPORT_MARGIN
-        points = []
+    def _support_hull(self, data: mujoco.MjData, sides: tuple[int, ...]) -> list[Point]:
+        """The support polygon (counter-clockwise), shrunk by the support margin, world frame [m]."""
+        hx, hy = self._sole_half
+        points: list[Point] = []
         for side in sides:
             site = self._sole_site[side]
-            rot = data.site_xmat[site].reshape(3, 3)[:2, :2]
-            for sx in (1, -1):
-                for sy in (1, -1):
-                    points.append(data.site_xpos[site][:2] + rot @ np.array([sx * hx, sy * hy]))
-        return convex_hull(np.array(points))
+            px, py = float(data.site_xpos[site][0]), float(data.site_xpos[site][1])
+            m = data.site_xmat[site]
+            r00, r01, r10, r11 = float(m[0]), float(m[1]), float(m[3]), float(m[4])
+            for sx, sy in _CORNER_SIGNS:
+                a, b = sx * hx, sy * hy
+                points.append((px + (r00 * a + r01 * b), py + (r10 * a + r11 * b)))
+        return hull_of(points)
 
-    def _targets(self, model: mujoco.MjModel, data: mujoco.MjData) -> WbcTargets:
-        feet = self._feet(data)
-        com, com_vel = self._com_state(model, data)
-        segments = self._segments(feet)
-        reference = dcm_reference(segments, self._phase_time, self._omega)
-        dcm = com[:2] + com_vel[:2] / self._omega
-        cop = reference.zmp + (1.0 + DCM_GAIN / self._omega) * (dcm - reference.dcm)
-        single = self._phase == _Phase.SINGLE
-        sides = (self._stance,) if single else (Side.LEFT, Side.RIGHT)
-        cop = clip_to_polygon(cop, self._support_hull(data, sides))
-        acceleration = np.zeros(3)
-        acceleration[:2] = self._omega**2 * (com[:2] - cop)
-        acceleration[2] = HEIGHT_KP * (self._com_height - com[2]) - HEIGHT_KD * com_vel[2]
-        speed = float(np.linalg.norm(com_vel[:2]))
+    def _targets(self, model: mujoco.MjModel, data: mujoco.MjData, feet: tuple[Footstep, Footstep]) -> WbcTargets:
+        mujoco.mj_jacSubtreeCom(model, data, self._jac_com, self._pelvis)
+        com = data.subtree_com[self._pelvis]
+        com_vel = self._jac_com @ data.qvel
+        cx, cy, cz = float(com[0]), float(com[1]), float(com[2])
+        vx, vy, vz = float(com_vel[0]), float(com_vel[1]), float(com_vel[2])
+        omega = self._omega
+        self._fill_preview(feet)
+        first_end_dcm = self._preview.dcm_at_first_end(omega)
+        reference = self._preview.reference(self._phase_time, omega, first_end_dcm)
+        dcm = (cx + vx / omega, cy + vy / omega)
+        gain = 1.0 + DCM_GAIN / omega
+        cop_x = reference.zmp_x + gain * (dcm[0] - reference.dcm_x)
+        cop_y = reference.zmp_y + gain * (dcm[1] - reference.dcm_y)
+        single = self._phase is _Phase.SINGLE
+        stance = self._stance
+        sides = (stance.index,) if single else (0, 1)
+        cop = clip_point(cop_x, cop_y, self._support_hull(data, sides))
+        omega2 = omega**2
+        acceleration = np.array([
+            omega2 * (cx - cop[0]),
+            omega2 * (cy - cop[1]),
+            HEIGHT_KP * (self._com_height - cz) - HEIGHT_KD * vz,
+        ])
+        speed = math.sqrt(vx * vx + vy * vy)
         self._still_time = self._still_time + self._dt if speed < HANDOVER_SPEED else 0.0
 
-        load = {Side.LEFT: 1.0, Side.RIGHT: 1.0}
-        swing_refs: dict[Side, SwingSample | None] = {Side.LEFT: None, Side.RIGHT: None}
-        heading = _mid_angle(feet[Side.LEFT].yaw, feet[Side.RIGHT].yaw)
+        load = [1.0, 1.0]
+        swing_refs: list[SwingSample | None] = [None, None]
+        heading = _mid_angle(feet[0].yaw, feet[1].yaw)
         if single:
-            swing = self._stance.other
-            load[swing] = 0.0
+            swing = stance.other
+            load[swing.index] = 0.0
             if self._phase_time < SWING_FREEZE * self._phase_duration or self._swing_landing is None:
-                self._swing_landing = self._adjusted_landing(segments, feet[self._stance], cop, dcm)
+                # The end-of-swing DCM of the plan: the reference at the end of the first piece.
+                planned = self._preview.reference(self._phase_duration, omega, first_end_dcm)
+                self._swing_landing = self._adjusted_landing(
+                    feet[stance.index], cop, dcm, (planned.dcm_x, planned.dcm_y)
+                )
             sample = swing_sample(
                 self._swing_start, self._swing_start_yaw, self._swing_landing, self._params.step_height,
                 self._phase_time, self._phase_duration,
             )
-            swing_refs[swing] = sample
-            heading = _mid_angle(feet[self._stance].yaw, sample.yaw)
-        elif self._phase == _Phase.DOUBLE:
-            load[self._stance] = min(1.0, self._phase_time / LOAD_RAMP)
-            load[self._stance.other] = max(0.0, 1.0 - self._phase_time / max(self._phase_duration, 1e-6))
+            swing_refs[swing.index] = sample
+            heading = _mid_angle(feet[stance.index].yaw, sample.yaw)
+        elif self._phase is _Phase.DOUBLE:
+            load[stance.index] = min(1.0, self._phase_time / LOAD_RAMP)
+            load[stance.other.index] = max(0.0, 1.0 - self._phase_time / max(self._phase_duration, 1e-6))
         return WbcTargets(
             com_acceleration=acceleration,
             heading=heading,
-            load=load,
-            swing=swing_refs,
+            load=(load[0], load[1]),
+            swing=(swing_refs[0], swing_refs[1]),
             posture=self._posture,
         )

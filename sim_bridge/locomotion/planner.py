@@ -1,7 +1,11 @@
-"""Footstep geometry, swing trajectories and the DCM reference. Pure numpy, no MuJoCo.
+"""Footstep geometry, swing trajectories and the DCM reference. Pure Python and numpy, no MuJoCo.
 
 Frames: every position is in the world frame, on the floor plane (x, y) [m]; yaws are about world z
 [rad], counter-clockwise positive.
+
+The walking controller calls these every control step, so the 2-D geometry is plain float math
+(a two-element numpy array costs more to make than the arithmetic on it): points are ``(x, y)``
+tuples, footsteps are named tuples, and the ZMP preview is a :class:`ZmpPreview` refilled in place.
 """
 
 from __future__ import annotations
@@ -10,36 +14,38 @@ import enum
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
+Point = tuple[float, float]
+
 
 class Side(enum.Enum):
+    """A foot. ``sign`` (+1 left, -1 right), ``index`` (0 left, 1 right) and ``other`` are plain attributes."""
+
     LEFT = 1.0
     RIGHT = -1.0
 
-    @property
-    def other(self) -> Side:
-        return Side.RIGHT if self is Side.LEFT else Side.LEFT
+    sign: float
+    index: int
+    other: Side
 
-    @property
-    def sign(self) -> float:
-        """+1 for the left foot, -1 for the right foot."""
-        return float(self.value)
+    def __init__(self, value: float) -> None:
+        self.sign = float(value)
+        self.index = 0 if value > 0 else 1
 
 
-@dataclass(frozen=True)
-class Footstep:
-    """Where a sole lands.
+Side.LEFT.other = Side.RIGHT
+Side.RIGHT.other = Side.LEFT
 
-    Attributes:
-        side: which foot.
-        position: sole centre in world, shape (2,) [m].
-        yaw: sole heading in world [rad].
-    """
+
+class Footstep(NamedTuple):
+    """Where a sole lands: which foot, sole centre (x, y) in world [m], sole heading in world [rad]."""
 
     side: Side
-    position: np.ndarray
+    x: float
+    y: float
     yaw: float
 
 
@@ -58,12 +64,99 @@ class ZmpSegment:
     end: np.ndarray
 
 
-@dataclass(frozen=True)
-class DcmReference:
-    """Reference ZMP and divergent component of motion at this instant, world frame [m]."""
+class DcmReference(NamedTuple):
+    """Reference ZMP and divergent component of motion at one instant, world frame (x, y) [m]."""
 
-    zmp: np.ndarray
-    dcm: np.ndarray
+    zmp_x: float
+    zmp_y: float
+    dcm_x: float
+    dcm_y: float
+
+    @property
+    def zmp(self) -> np.ndarray:
+        """Reference ZMP, shape (2,) [m]."""
+        return np.array([self.zmp_x, self.zmp_y])
+
+    @property
+    def dcm(self) -> np.ndarray:
+        """Reference DCM, shape (2,) [m]."""
+        return np.array([self.dcm_x, self.dcm_y])
+
+
+class ZmpPreview:
+    """The ZMP reference ahead, as linear pieces; the first piece is the current one.
+
+    Stored as flat lists of floats, cleared and refilled every control step without new objects
+    beyond the floats themselves.
+    """
+
+    __slots__ = ("durations", "start_x", "start_y", "end_x", "end_y")
+
+    def __init__(self) -> None:
+        self.durations: list[float] = []
+        self.start_x: list[float] = []
+        self.start_y: list[float] = []
+        self.end_x: list[float] = []
+        self.end_y: list[float] = []
+
+    def clear(self) -> None:
+        self.durations.clear()
+        self.start_x.clear()
+        self.start_y.clear()
+        self.end_x.clear()
+        self.end_y.clear()
+
+    def add(self, duration: float, start: Point, end: Point) -> None:
+        """Append a piece of ``duration`` [s] from ``start`` to ``end`` [m]."""
+        self.durations.append(duration)
+        self.start_x.append(start[0])
+        self.start_y.append(start[1])
+        self.end_x.append(end[0])
+        self.end_y.append(end[1])
+
+    def __len__(self) -> int:
+        return len(self.durations)
+
+    def dcm_at_first_end(self, omega: float) -> Point:
+        """The DCM at the end of the first piece [m].
+
+        Integrates xi_dot = omega (xi - p) backwards in closed form over pieces 1.., with xi = p at
+        the end of the last piece (the horizon should be long enough, about 2 s, for that
+        assumption to fade).
+
+        Args:
+            omega: LIPM natural frequency sqrt(g / z_c) [1/s].
+        """
+        durations, sx, sy, ex, ey = self.durations, self.start_x, self.start_y, self.end_x, self.end_y
+        xi_x, xi_y = ex[-1], ey[-1]
+        for i in range(len(durations) - 1, 0, -1):
+            duration = durations[i]
+            scale = max(duration, 1e-9)
+            lead_x = (ex[i] - sx[i]) / scale / omega
+            lead_y = (ey[i] - sy[i]) / scale / omega
+            decay = math.exp(-omega * duration)
+            xi_x = sx[i] + lead_x + decay * (xi_x - ex[i] - lead_x)
+            xi_y = sy[i] + lead_y + decay * (xi_y - ey[i] - lead_y)
+        return xi_x, xi_y
+
+    def reference(self, elapsed: float, omega: float, first_end_dcm: Point) -> DcmReference:
+        """Reference ZMP and DCM ``elapsed`` seconds into the first piece.
+
+        Args:
+            elapsed: time already spent in the first piece [s], clamped to the piece.
+            omega: LIPM natural frequency [1/s].
+            first_end_dcm: :meth:`dcm_at_first_end` of this preview [m].
+        """
+        duration = max(self.durations[0], 1e-9)
+        t = min(max(elapsed, 0.0), duration)
+        slope_x = (self.end_x[0] - self.start_x[0]) / duration
+        slope_y = (self.end_y[0] - self.start_y[0]) / duration
+        zmp_x = self.start_x[0] + slope_x * t
+        zmp_y = self.start_y[0] + slope_y * t
+        decay = math.exp(omega * (t - duration))
+        dcm_x = zmp_x + slope_x / omega + decay * (first_end_dcm[0] - self.end_x[0] - slope_x / omega)
+        dcm_y = zmp_y + slope_y / omega + decay * (first_end_dcm[1] - self.end_y[0] - slope_y / omega)
+        return DcmReference(zmp_x, zmp_y, dcm_x, dcm_y)
 
 
 def rotation(yaw: float) -> np.ndarray:
@@ -72,34 +165,36 @@ def rotation(yaw: float) -> np.ndarray:
     return np.array([[c, -s], [s, c]])
 
 
+def rotate(yaw: float, x: float, y: float) -> Point:
+    """The vector (x, y) rotated by ``yaw`` [rad]."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    return c * x - s * y, s * x + c * y
+
+
+def unrotate(yaw: float, x: float, y: float) -> Point:
+    """The vector (x, y) rotated by ``-yaw`` [rad] (world to a frame of heading ``yaw``)."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    return c * x + s * y, c * y - s * x
+
+
 def wrap_angle(angle: float) -> float:
     """Angle wrapped to [-pi, pi) [rad]."""
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def dcm_reference(segments: Sequence[ZmpSegment], elapsed: float, omega: float) -> DcmReference:
-    """DCM reference at ``elapsed`` seconds into the first segment.
-
-    Integrates xi_dot = omega (xi - p) backwards in closed form, with xi = p at the end of the last
-    segment (the horizon should be long enough, about 2 s, for that assumption to fade).
+    """DCM reference at ``elapsed`` seconds into the first segment (see :class:`ZmpPreview`).
 
     Args:
         segments: ZMP pieces, the first one being the current one.
         elapsed: time already spent in the first segment [s].
         omega: LIPM natural frequency sqrt(g / z_c) [1/s].
     """
-    xi_end = np.asarray(segments[-1].end, dtype=float)
-    for segment in reversed(segments[1:]):
-        slope = (segment.end - segment.start) / max(segment.duration, 1e-9)
-        decay = math.exp(-omega * segment.duration)
-        xi_end = segment.start + slope / omega + decay * (xi_end - segment.end - slope / omega)
-    first = segments[0]
-    duration = max(first.duration, 1e-9)
-    t = min(max(elapsed, 0.0), duration)
-    slope = (first.end - first.start) / duration
-    zmp = first.start + slope * t
-    dcm = zmp + slope / omega + math.exp(omega * (t - duration)) * (xi_end - first.end - slope / omega)
-    return DcmReference(zmp=zmp, dcm=dcm)
+    preview = ZmpPreview()
+    for segment in segments:
+        preview.add(float(segment.duration), (float(segment.start[0]), float(segment.start[1])),
+                    (float(segment.end[0]), float(segment.end[1])))
+    return preview.reference(elapsed, omega, preview.dcm_at_first_end(omega))
 
 
 @dataclass(frozen=True)
@@ -114,12 +209,12 @@ class SwingSample:
 
 
 def swing_sample(
-    start: np.ndarray, start_yaw: float, target: Footstep, height: float, elapsed: float, duration: float
+    start: Sequence[float], start_yaw: float, target: Footstep, height: float, elapsed: float, duration: float
 ) -> SwingSample:
     """Swing sole reference: quintic in x, y and yaw, height ``64 h s^3 (1 - s)^3`` (zero speed at both ends).
 
     Args:
-        start: sole position at lift-off, shape (3,) [m].
+        start: sole position at lift-off (x, y, z) [m].
         start_yaw: sole yaw at lift-off [rad].
         target: where the sole lands.
         height: apex height above the floor [m].
@@ -130,55 +225,68 @@ def swing_sample(
     blend = 10 * s**3 - 15 * s**4 + 6 * s**5
     blend_d = (30 * s**2 - 60 * s**3 + 30 * s**4) / duration
     blend_dd = (60 * s - 180 * s**2 + 120 * s**3) / duration**2
-    delta = np.asarray(target.position) - start[:2]
+    x0, y0, z0 = start[0], start[1], start[2]
+    dx, dy = target.x - x0, target.y - y0
     z = 64.0 * height * s**3 * (1 - s) ** 3
     z_d = 64.0 * height * 3 * s**2 * (1 - s) ** 2 * (1 - 2 * s) / duration
     z_dd = 64.0 * height * 6 * s * (1 - s) * ((1 - 2 * s) ** 2 - s * (1 - s)) / duration**2
-    z0 = start[2] * (1 - blend)
     yaw_delta = wrap_angle(target.yaw - start_yaw)
     return SwingSample(
-        position=np.array([*(start[:2] + delta * blend), z + z0]),
-        velocity=np.array([*(delta * blend_d), z_d - start[2] * blend_d]),
-        acceleration=np.array([*(delta * blend_dd), z_dd - start[2] * blend_dd]),
+        position=np.array([x0 + dx * blend, y0 + dy * blend, z + z0 * (1 - blend)]),
+        velocity=np.array([dx * blend_d, dy * blend_d, z_d - z0 * blend_d]),
+        acceleration=np.array([dx * blend_dd, dy * blend_dd, z_dd - z0 * blend_dd]),
         yaw=start_yaw + yaw_delta * blend,
         yaw_rate=yaw_delta * blend_d,
     )
 
 
-def convex_hull(points: np.ndarray) -> np.ndarray:
-    """Counter-clockwise convex hull of 2-D points, shape (k, 2) (Andrew's monotone chain)."""
-    pts = sorted(map(tuple, np.asarray(points, dtype=float)))
+def _cross(o: Point, a: Point, b: Point) -> float:
+    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
 
-    def cross(o: tuple[float, float], a: tuple[float, float], b: tuple[float, float]) -> float:
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
 
-    lower: list[tuple[float, float]] = []
+def hull_of(points: list[Point]) -> list[Point]:
+    """Counter-clockwise convex hull of 2-D points (Andrew's monotone chain)."""
+    pts = sorted(points)
+    lower: list[Point] = []
     for p in pts:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
+        while len(lower) >= 2 and _cross(lower[-2], lower[-1], p) <= 0:
             lower.pop()
         lower.append(p)
-    upper: list[tuple[float, float]] = []
+    upper: list[Point] = []
     for p in reversed(pts):
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
+        while len(upper) >= 2 and _cross(upper[-2], upper[-1], p) <= 0:
             upper.pop()
         upper.append(p)
-    return np.array(lower[:-1] + upper[:-1])
+    return lower[:-1] + upper[:-1]
+
+
+def clip_point(x: float, y: float, hull: list[Point]) -> Point:
+    """(x, y) itself if it is inside the counter-clockwise convex polygon, else the nearest boundary point."""
+    inside = True
+    best = (x, y)
+    best_distance = math.inf
+    count = len(hull)
+    for i in range(count):
+        ax, ay = hull[i]
+        bx, by = hull[(i + 1) % count]
+        edge_x, edge_y = bx - ax, by - ay
+        px, py = x - ax, y - ay
+        if edge_x * py - edge_y * px < 0:
+            inside = False
+        t = min(max((px * edge_x + py * edge_y) / max(edge_x * edge_x + edge_y * edge_y, 1e-12), 0.0), 1.0)
+        cx, cy = ax + t * edge_x, ay + t * edge_y
+        distance = (x - cx) ** 2 + (y - cy) ** 2
+        if distance < best_distance:
+            best, best_distance = (cx, cy), distance
+    return (x, y) if inside or count == 0 else best
+
+
+def convex_hull(points: np.ndarray) -> np.ndarray:
+    """Counter-clockwise convex hull of 2-D points, shape (k, 2) (array form of :func:`hull_of`)."""
+    return np.array(hull_of([(float(p[0]), float(p[1])) for p in np.asarray(points, dtype=float)]))
 
 
 def clip_to_polygon(point: np.ndarray, hull: np.ndarray) -> np.ndarray:
     """The point itself if it is inside the counter-clockwise convex polygon, else the nearest boundary point."""
-    inside = True
-    best = None
-    best_distance = math.inf
-    count = len(hull)
-    for i in range(count):
-        a, b = hull[i], hull[(i + 1) % count]
-        edge = b - a
-        if edge[0] * (point[1] - a[1]) - edge[1] * (point[0] - a[0]) < 0:
-            inside = False
-        t = float(np.clip(np.dot(point - a, edge) / max(np.dot(edge, edge), 1e-12), 0.0, 1.0))
-        candidate = a + t * edge
-        distance = float(np.sum((point - candidate) ** 2))
-        if distance < best_distance:
-            best, best_distance = candidate, distance
-    return point.copy() if inside or best is None else best
+    vertices = [(float(p[0]), float(p[1])) for p in hull]
+    return np.array(clip_point(float(point[0]), float(point[1]), vertices))

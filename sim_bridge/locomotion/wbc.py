@@ -1,23 +1,35 @@
 """Whole-body torque QP: joint accelerations and sole-corner forces that realise the balance tasks.
 
-Decision variables x = [f (3 per sole corner, world frame) [N], qacc (nv) [m/s^2, rad/s^2]].
-Equalities: the floating-base rows of M qacc + h = tau + J_c^T f (h = qfrc_bias - qfrc_passive),
-and the servo-driven joints' rows with their position servo's own torque. Inequalities: friction
-pyramids, bounded normal forces (a per-foot load scale), joint torque limits. Costs: CoM acceleration
-(through the total contact force), pelvis and torso orientation, stance soles fixed (soft), swing sole
-tracking, posture. Solved with DAQP.
+The QP in full: decision variables x = [f (3 per sole corner, world frame) [N], qacc (nv)
+[m/s^2, rad/s^2]]. Equalities: the floating-base rows of M qacc + h = tau + J_c^T f
+(h = qfrc_bias - qfrc_passive), and the servo-driven joints' rows with their position servo's own
+torque. Inequalities: friction pyramids, bounded normal forces (a per-foot load scale), joint torque
+limits, a knee-bend limit. Costs: CoM acceleration (through the total contact force), pelvis and
+torso orientation, stance soles fixed (soft), swing sole tracking, posture, a small regularisation.
+
+How it is solved (the same optimum, found faster): the equality rows are solved exactly for the
+accelerations they determine. With E the base and servo dofs and m the motor dofs,
+
+    qacc_E = K_f f + K_m qacc_m + k0,   [K_f | K_m | k0] = M_EE^-1 [J_c,E^T | -M_Em | tau_E - h_E],
+
+so the QP is posed in z = [f, qacc_m] alone (24 + 15 variables, no equality rows) and every cost
+and constraint row is mapped through qacc = Q z + q0. It is solved with DAQP, warm-started from the
+previous control step's active set (the reduced problem has the same dimensions every step).
 """
 
 from __future__ import annotations
 
+import logging
+import math
 from dataclasses import dataclass
 
 import daqp
 import mujoco
 import numpy as np
+from scipy.linalg import lapack
 
 from robot_models import g1_constants as names
-from sim_bridge.locomotion.planner import Side, SwingSample
+from sim_bridge.locomotion.planner import SwingSample
 
 GRAVITY = 9.81
 FRICTION = 0.6  # pyramid coefficient used by the QP (the floor has 1.0)
@@ -39,6 +51,17 @@ POSTURE_KP, POSTURE_KD = 100.0, 20.0
 STANCE_KD = 10.0
 KNEE_MIN = 0.05  # the QP keeps the knees at least this bent [rad]
 KNEE_HORIZON = 0.05  # look-ahead of the knee limit [s]
+UNBOUNDED = 1e9  # stands for "no bound" in the QP's bound vectors
+FACTORISATION_FAILED = -100  # ``last_status`` when M_EE could not be factorised (a broken state)
+
+_log = logging.getLogger(__name__)
+
+
+def as_index(indices: np.ndarray) -> slice | np.ndarray:
+    """A slice when the indices are consecutive (indexing then gives a view, not a copy), else the indices."""
+    if len(indices) and np.array_equal(indices, np.arange(indices[0], indices[0] + len(indices))):
+        return slice(int(indices[0]), int(indices[0]) + len(indices))
+    return indices
 
 
 @dataclass(frozen=True)
@@ -48,225 +71,340 @@ class WbcTargets:
     Attributes:
         com_acceleration: desired CoM acceleration in world, shape (3,) [m/s^2].
         heading: desired pelvis and torso yaw [rad] (roll and pitch are zero).
-        load: per foot, the upper bound on its normal force as a fraction of full load, in [0, 1].
-        swing: per foot, the swing reference, or None for a foot that must stay put.
+        load: (left, right) upper bound on each foot's normal force as a fraction of full load, in [0, 1].
+        swing: (left, right) swing reference of each foot, or None for a foot that must stay put.
         posture: target position of every motor joint, in ``motor_joints`` order [rad].
     """
 
     com_acceleration: np.ndarray
     heading: float
-    load: dict[Side, float]
-    swing: dict[Side, SwingSample | None]
+    load: tuple[float, float]
+    swing: tuple[SwingSample | None, SwingSample | None]
     posture: np.ndarray
 
 
-def _yaw_quat(yaw: float) -> np.ndarray:
-    return np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+def _clip(values: np.ndarray, limits: np.ndarray) -> np.ndarray:
+    """``values`` clipped in place to ``limits[:, 0]`` .. ``limits[:, 1]``."""
+    np.maximum(values, limits[:, 0], out=values)
+    return np.minimum(values, limits[:, 1], out=values)
 
 
 class WholeBodyQP:
     """Builds and solves the torque QP on the current state of a MuJoCo model.
 
+    Every array the QP needs is allocated here, once; :meth:`solve` fills them by slices.
+
     Args:
         model: the robot model.
         motor_joints: joints driven by torque (legs, waist), in the order torques are returned.
         servo_joints: joints left on their position servos (arms); their torque is predicted, not chosen.
+
+    Raises:
+        ValueError: the floating base, motor and servo joints do not partition the model's dofs.
     """
 
     def __init__(self, model: mujoco.MjModel, motor_joints: tuple[str, ...], servo_joints: tuple[str, ...]) -> None:
-        self.nv = model.nv
-        self.n = FORCE_BLOCK + self.nv
+        nv = self.nv = model.nv
+        nf = FORCE_BLOCK
         self.mass = float(np.sum(model.body_mass))
         self.motor_dofs = np.array([model.joint(j).dofadr[0] for j in motor_joints])
         self.servo_dofs = np.array([model.joint(j).dofadr[0] for j in servo_joints])
         self.servo_qpos = np.array([model.joint(j).qposadr[0] for j in servo_joints])
         self.servo_actuators = np.array([model.actuator(j).id for j in servo_joints])
         self.motor_qpos = np.array([model.joint(j).qposadr[0] for j in motor_joints])
+        self.pelvis = model.body(names.ROOT_BODY).id
+        self.torso = model.body(names.TORSO_BODY).id
+        base_dof = int(model.jnt_dofadr[model.body_jntadr[self.pelvis]])
+        self.base_dofs = np.arange(base_dof, base_dof + 6)
+        # z = [f, qacc_m]; qacc in the order [E, m] with E = base + servo dofs (eliminated).
+        eliminated = np.concatenate([self.base_dofs, self.servo_dofs])
+        self._perm = np.concatenate([eliminated, self.motor_dofs])
+        if sorted(self._perm.tolist()) != list(range(nv)):
+            raise ValueError("the floating base, motor and servo joints must cover every dof exactly once")
+        ne, nm = len(eliminated), len(self.motor_dofs)
+        self.ne, self.nm, self.nz = ne, nm, nf + nm
+        self._perm_flat = (self._perm[:, None] * nv + self._perm[None, :]).ravel()  # M[perm][:, perm]
+
         knees = [j for j in names.LEFT_LEG_JOINTS + names.RIGHT_LEG_JOINTS if j.endswith("_knee_joint")]
-        self.knee_dofs = np.array([model.joint(j).dofadr[0] for j in knees])
         self.knee_qpos = np.array([model.joint(j).qposadr[0] for j in knees])
+        self.knee_dofs = np.array([model.joint(j).dofadr[0] for j in knees])
+        self._knee_z = np.array([nf + motor_joints.index(j) for j in knees])  # their column in z
         self.torque_limit = np.array([model.jnt_actfrcrange[model.joint(j).id] for j in motor_joints])
         self.servo_limit = np.array([model.jnt_actfrcrange[model.joint(j).id] for j in servo_joints])
         leg = set(names.LEFT_LEG_JOINTS + names.RIGHT_LEG_JOINTS)
         self.posture_weight = np.array([W_POSTURE_LEG if j in leg else W_POSTURE for j in motor_joints])
-        self.foot_body = {Side.LEFT: model.body(names.LEFT_FOOT_BODY).id, Side.RIGHT: model.body(names.RIGHT_FOOT_BODY).id}
-        self.sole_site = {Side.LEFT: model.site(names.LEFT_SOLE_SITE).id, Side.RIGHT: model.site(names.RIGHT_SOLE_SITE).id}
-        self.pelvis = model.body(names.ROOT_BODY).id
-        self.torso = model.body(names.TORSO_BODY).id
+        self.foot_body = (model.body(names.LEFT_FOOT_BODY).id, model.body(names.RIGHT_FOOT_BODY).id)
+        self.sole_site = (model.site(names.LEFT_SOLE_SITE).id, model.site(names.RIGHT_SOLE_SITE).id)
         cx, cy, cz = names.SOLE_CENTER_IN_FOOT
         hx, hy, hz = names.SOLE_HALF_SIZE
         self.corners_in_foot = np.array([[cx + sx * hx, cy + sy * hy, cz - hz] for sx in (1, -1) for sy in (1, -1)])
-        self._mass_matrix = np.zeros((self.nv, self.nv))
-        self._jac = np.zeros((3, self.nv))
-        self._jac_rot = np.zeros((3, self.nv))
-        self._jac_dot = np.zeros((3, self.nv))
-        self._jac_dot_rot = np.zeros((3, self.nv))
-        self.last_force = np.zeros(FORCE_BLOCK)
-        self.last_status = 1
-        base_dof = model.jnt_dofadr[model.body_jntadr[self.pelvis]]
-        self.base_dofs = np.arange(base_dof, base_dof + 6)
-        # Constant rows: |f_x|, |f_y| <= mu f_z per corner; total force / mass; posture and knee selectors.
-        nf = FORCE_BLOCK
-        self._friction_rows = np.zeros((4 * 2 * CORNERS_PER_FOOT, self.n))
+
+        # Kinematics. Task rows: pelvis rotation, torso rotation, left sole (lin, ang), right sole.
+        # ``_rows`` stacks, in MuJoCo's dof order: the task Jacobians' time derivatives (18), the task
+        # Jacobians (18) and the motor rows of M (nm); one product with qvel gives the drifts and the
+        # task velocities, one product with Q maps the task and torque rows to z.
+        self._mass_matrix = np.zeros((nv, nv))
+        self._bias = np.zeros(nv)
+        self._contact_jac = np.zeros((nf, nv))
+        self._corner_jac = [self._contact_jac[3 * c : 3 * c + 3] for c in range(2 * CORNERS_PER_FOOT)]
+        self._rows = np.zeros((36 + nm, nv))
+        self._task_jac_dot = self._rows[:18]
+        self._task_jac = self._rows[18:36]
+        self._motor_mass = self._rows[36:]
+        self._task_rhs = np.zeros(18)
+        self._error_local = np.zeros(3)
+        self._yaw_quat = np.zeros(4)
+        self._site_quat = np.zeros(4)
+        self._mass_e_flat = (eliminated[:, None] * nv + self._perm[None, :]).ravel()  # M[E][:, perm]
+        # Index views (slices where the indices are consecutive, as they are on the G1).
+        self._motor_dof_index = as_index(self.motor_dofs)
+        self._motor_qpos_index = as_index(self.motor_qpos)
+        self._servo_dof_index = as_index(self.servo_dofs)
+        self._servo_qpos_index = as_index(self.servo_qpos)
+        self._servo_actuator_index = as_index(self.servo_actuators)
+        # The arm servos' affine law tau = g ctrl + b0 + b1 q + b2 qd (their gains are not changed at run time).
+        self._servo_gain = model.actuator_gainprm[self.servo_actuators, 0].copy()
+        self._servo_bias = [model.actuator_biasprm[self.servo_actuators, k].copy() for k in range(3)]
+        self._servo_torque = np.zeros(len(self.servo_dofs))
+
+        # Elimination: [K_f | K_m | k0] = M_EE^-1 [J_c,E^T | -M_Em | tau_E - h_E]; qacc = Q z + q0.
+        self._elim_rhs = np.zeros((ne, self.nz + 1))
+        self._q_map = np.zeros((nv, self.nz))
+        self._q_map[ne:, nf:] = np.eye(nm)
+
+        # Cost rows on z: CoM (total force / mass), tasks, posture (qacc_m), regularisation of qacc_E.
+        n_cost = 3 + 18 + nm + ne
+        self._cost_rows = np.zeros((n_cost, self.nz))
+        self._cost_rows[:3, :nf] = np.tile(np.eye(3), (1, 2 * CORNERS_PER_FOOT)) / self.mass
+        self._cost_rows[21 : 21 + nm, nf:] = np.eye(nm)
+        self._cost_rhs = np.zeros(n_cost)
+        self._cost_weight = np.concatenate([
+            [W_COM] * 3, [W_PELVIS] * 3, [W_TORSO] * 3, [0.0] * 12, self.posture_weight, [W_REG_QACC] * ne
+        ])
+        self._task_weight = self._cost_weight[3:21]  # the soles' weights are set per step (stance or swing)
+        self._task_rows = self._cost_rows[3:21]
+        self._hessian_diag = np.concatenate([np.full(nf, W_REG_FORCE), np.full(nm, W_REG_QACC)])
+        self._hessian = np.zeros((self.nz, self.nz))
+        self._hessian_diagonal = self._hessian.reshape(-1)[:: self.nz + 1]  # a view of its diagonal
+        self._gradient = np.zeros(self.nz)
+        self._mapped = np.zeros((18 + nm, self.nz))
+        self._mapped_offset = np.zeros(18 + nm)
+
+        # Constraints on z: simple bounds on every variable, then friction pyramids and torque limits.
+        n_friction = 4 * 2 * CORNERS_PER_FOOT
+        self._constraints = np.zeros((n_friction + nm, self.nz))
         for c in range(2 * CORNERS_PER_FOOT):
             for k, (axis, sign) in enumerate(((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0))):
-                self._friction_rows[4 * c + k, 3 * c + axis] = sign
-                self._friction_rows[4 * c + k, 3 * c + 2] = -FRICTION
-        self._com_rows = np.zeros((3, self.n))
-        self._com_rows[:, :nf] = np.tile(np.eye(3), (1, 2 * CORNERS_PER_FOOT)) / self.mass
-        self._posture_rows = np.zeros((len(self.motor_dofs), self.n))
-        self._posture_rows[np.arange(len(self.motor_dofs)), nf + self.motor_dofs] = 1.0
-        self._knee_rows = np.zeros((len(self.knee_dofs), self.n))
-        self._knee_rows[np.arange(len(self.knee_dofs)), nf + self.knee_dofs] = 1.0
+                self._constraints[4 * c + k, 3 * c + axis] = sign
+                self._constraints[4 * c + k, 3 * c + 2] = -FRICTION
+        self._torque_rows = self._constraints[n_friction:]  # tau_m = T z + t0
+        self._torque_offset = np.zeros(nm)
+        self._upper = np.zeros(self.nz + n_friction + nm)
+        self._lower = np.zeros(self.nz + n_friction + nm)
+        self._upper[: self.nz] = UNBOUNDED
+        self._lower[: self.nz] = -UNBOUNDED
+        self._lower[self.nz : self.nz + n_friction] = -UNBOUNDED
+        self._normal_index = np.arange(2, nf, 3)  # f_z of every corner
+        self._lower[self._normal_index] = 0.0
+        self._corner_max = 1.5 * self.mass * GRAVITY
+        self._qp = daqp.Model()
+        self._qp_ready = False
 
-    # ----- kinematics helpers -----------------------------------------------------------
-    def corners(self, data: mujoco.MjData, side: Side) -> np.ndarray:
-        """World positions of the four sole corners of a foot, shape (4, 3) [m]."""
+        self.last_force = np.zeros(FORCE_BLOCK)
+        self.last_status = 1
+        self.relaxed_count = 0  # steps solved without the torque and knee limits (infeasible with them)
+        self.fallback_count = 0  # steps where no QP solved and the previous forces were reused
+
+    def reset(self) -> None:
+        """Forget the previous step's forces and active set (call when the state jumps, e.g. on reset)."""
+        self.last_force[:] = 0.0
+        self.last_status = 1
+        self._qp_ready = False
+
+    # ----- kinematics -------------------------------------------------------------------
+    def corners(self, data: mujoco.MjData, side: int) -> np.ndarray:
+        """World positions of the four sole corners of a foot (0 left, 1 right), shape (4, 3) [m]."""
         body = self.foot_body[side]
         return data.xpos[body] + self.corners_in_foot @ data.xmat[body].reshape(3, 3).T
 
-    def _body_rot_task(self, model: mujoco.MjModel, data: mujoco.MjData, body: int, yaw: float) -> tuple[np.ndarray, np.ndarray]:
-        mujoco.mj_jacBody(model, data, None, self._jac_rot, body)
-        mujoco.mj_jacDot(model, data, None, self._jac_dot_rot, data.xpos[body], body)
-        error_local = np.zeros(3)
-        mujoco.mju_subQuat(error_local, _yaw_quat(yaw), data.xquat[body])
-        rot = data.xmat[body].reshape(3, 3)
-        error = rot @ error_local
-        omega = self._jac_rot @ data.qvel
-        target = ORIENTATION_KP * error - ORIENTATION_KD * omega - self._jac_dot_rot @ data.qvel
-        return self._jac_rot.copy(), target
+    def _orientation_target(self, data: mujoco.MjData, row: int, body: int, velocity: np.ndarray) -> None:
+        """Rotation task rhs [rad/s^2] of ``body``: PD toward the yaw in ``self._yaw_quat`` (world frame)."""
+        mujoco.mju_subQuat(self._error_local, self._yaw_quat, data.xquat[body])
+        rhs = self._task_rhs[row : row + 3]
+        np.matmul(data.xmat[body].reshape(3, 3), self._error_local, out=rhs)
+        rhs *= ORIENTATION_KP
+        rhs -= ORIENTATION_KD * velocity[row : row + 3]
 
-    def _site_jacobians(self, model: mujoco.MjModel, data: mujoco.MjData, side: Side) -> tuple[np.ndarray, np.ndarray]:
-        site = self.sole_site[side]
-        jac = np.zeros((6, self.nv))
-        jac_dot = np.zeros((6, self.nv))
-        mujoco.mj_jacSite(model, data, jac[:3], jac[3:], site)
-        mujoco.mj_jacDot(model, data, jac_dot[:3], jac_dot[3:], data.site_xpos[site], self.foot_body[side])
-        return jac, jac_dot @ data.qvel
+    def _set_yaw_quat(self, yaw: float) -> None:
+        half = 0.5 * yaw
+        self._yaw_quat[0] = math.cos(half)
+        self._yaw_quat[3] = math.sin(half)
+
+    def _fill_tasks(self, model: mujoco.MjModel, data: mujoco.MjData, targets: WbcTargets) -> None:
+        """Task Jacobians (18, nv) and their time derivatives, weights and right-hand sides [m/s^2, rad/s^2]."""
+        jac, jac_dot, qvel = self._task_jac, self._task_jac_dot, data.qvel
+        for row, body in ((0, self.pelvis), (3, self.torso)):
+            mujoco.mj_jacBody(model, data, None, jac[row : row + 3], body)
+            mujoco.mj_jacDot(model, data, None, jac_dot[row : row + 3], data.xpos[body], body)
+        for side in (0, 1):
+            row = 6 + 6 * side
+            site, body = self.sole_site[side], self.foot_body[side]
+            mujoco.mj_jacSite(model, data, jac[row : row + 3], jac[row + 3 : row + 6], site)
+            mujoco.mj_jacDot(model, data, jac_dot[row : row + 3], jac_dot[row + 3 : row + 6], data.site_xpos[site], body)
+        drift_velocity = self._rows[:36] @ qvel
+        velocity = drift_velocity[18:]
+        rhs = self._task_rhs
+        self._set_yaw_quat(targets.heading)
+        for row, body in ((0, self.pelvis), (3, self.torso)):
+            self._orientation_target(data, row, body, velocity)
+        weight = self._task_weight
+        for side in (0, 1):
+            row = 6 + 6 * side
+            swing = targets.swing[side]
+            if swing is None:
+                np.multiply(velocity[row : row + 6], -STANCE_KD, out=rhs[row : row + 6])
+                weight[row : row + 6] = W_STANCE
+            else:
+                site = self.sole_site[side]
+                rhs[row : row + 3] = (
+                    swing.acceleration
+                    + SWING_KP * (swing.position - data.site_xpos[site])
+                    + SWING_KD * (swing.velocity - velocity[row : row + 3])
+                )
+                mujoco.mju_mat2Quat(self._site_quat, data.site_xmat[site])
+                self._set_yaw_quat(swing.yaw)
+                mujoco.mju_subQuat(self._error_local, self._yaw_quat, self._site_quat)
+                angular = rhs[row + 3 : row + 6]
+                np.matmul(data.site_xmat[site].reshape(3, 3), self._error_local, out=angular)
+                angular *= SWING_KP
+                angular[2] += SWING_KD * swing.yaw_rate
+                angular -= SWING_KD * velocity[row + 3 : row + 6]
+                weight[row : row + 6] = W_SWING
+        rhs -= drift_velocity[:18]
+
+    def _servo_torques(self, data: mujoco.MjData) -> np.ndarray:
+        """The arm servos' torques at this state, clipped to their joints' limits [N m]."""
+        bias0, bias1, bias2 = self._servo_bias
+        torque = np.multiply(self._servo_gain, data.ctrl[self._servo_actuator_index], out=self._servo_torque)
+        torque += bias0
+        torque += bias1 * data.qpos[self._servo_qpos_index]
+        torque += bias2 * data.qvel[self._servo_dof_index]
+        return _clip(torque, self.servo_limit)
 
     # ----- the QP -----------------------------------------------------------------------
     def solve(self, model: mujoco.MjModel, data: mujoco.MjData, targets: WbcTargets) -> np.ndarray:
-        """Motor torques for this control step, in ``motor_joints`` order [N m]."""
-        nv, nf = self.nv, FORCE_BLOCK
-        mujoco.mj_fullM(model, data, self._mass_matrix)
-        mass_matrix = self._mass_matrix
-        bias = data.qfrc_bias - data.qfrc_passive
+        """Motor torques for this control step, in ``motor_joints`` order [N m].
+
+        If the QP is infeasible with the torque and knee limits it is solved without them
+        (:attr:`relaxed_count` counts such steps); if that fails too, the previous step's contact
+        forces are reused with zero joint accelerations, tau = h_m - J_c,m^T f_prev (a safe hold
+        for one step; :attr:`fallback_count` counts such steps, and the first one and every 100th
+        are logged as warnings).
+        """
+        nf, ne, nz = FORCE_BLOCK, self.ne, self.nz
         qvel = data.qvel
+        mass = self._mass_matrix
+        mujoco.mj_fullM(model, data, mass)
+        bias = np.subtract(data.qfrc_bias, data.qfrc_passive, out=self._bias)
+        bias_perm = bias[self._perm]
+        for side in (0, 1):
+            body = self.foot_body[side]
+            for c, corner in enumerate(self.corners(data, side)):
+                mujoco.mj_jac(model, data, self._corner_jac[4 * side + c], None, corner, body)
+        contact_jac = self._contact_jac.take(self._perm, axis=1)  # (nf, nv), columns [E, m]
+        self._fill_tasks(model, data, targets)
+        self._motor_mass[:] = mass[self._motor_dof_index]
 
-        contact_jac = np.zeros((nf, nv))
-        corner_index = 0
-        for side in (Side.LEFT, Side.RIGHT):
-            for corner in self.corners(data, side):
-                mujoco.mj_jac(model, data, self._jac, None, corner, self.foot_body[side])
-                contact_jac[3 * corner_index : 3 * corner_index + 3] = self._jac
-                corner_index += 1
+        # Eliminate the equality rows: qacc_E = K z + k0.
+        mass_e = mass.take(self._mass_e_flat).reshape(ne, self.nv)  # rows E, columns [E, m]
+        elim = self._elim_rhs
+        elim[:, :nf] = contact_jac[:, :ne].T
+        np.negative(mass_e[:, ne:], out=elim[:, nf:nz])
+        np.negative(bias_perm[:6], out=elim[:6, nz])
+        np.subtract(self._servo_torques(data), bias_perm[6:ne], out=elim[6:, nz])
+        _, solved, info = lapack.dposv(mass_e[:, :ne], elim)
+        if info != 0:  # M_EE not positive definite: only with a broken state (e.g. NaN)
+            return self._fallback(FACTORISATION_FAILED, bias_perm, contact_jac)
+        q_map = self._q_map
+        q_map[:ne] = solved[:, :nz]
+        q_offset = solved[:, nz]
 
-        rows: list[np.ndarray] = []
-        rhs: list[np.ndarray] = []
-        weights: list[np.ndarray] = []
+        # Task and torque rows on z: [J_task; M_m] qacc = [J_task; M_m]_perm (Q z + q0).
+        rows_perm = self._rows[18:].take(self._perm, axis=1)
+        mapped = np.matmul(rows_perm, q_map, out=self._mapped)
+        offset = np.matmul(rows_perm[:, :ne], q_offset, out=self._mapped_offset)
 
-        def add(a: np.ndarray, b: np.ndarray, w: float | np.ndarray) -> None:
-            rows.append(a)
-            rhs.append(b)
-            weights.append(np.broadcast_to(np.asarray(w, dtype=float), (a.shape[0],)))
+        # Costs: H = C^T W C + diag, g = -C^T W r.
+        rows, rhs = self._cost_rows, self._cost_rhs
+        rows[3:21] = mapped[:18]
+        rows[21 + self.nm :] = solved[:, :nz]
+        rhs[:3] = targets.com_acceleration
+        rhs[2] += GRAVITY
+        np.subtract(self._task_rhs, offset[:18], out=rhs[3:21])
+        posture = rhs[21 : 21 + self.nm]
+        np.subtract(targets.posture, data.qpos[self._motor_qpos_index], out=posture)
+        posture *= POSTURE_KP
+        posture -= POSTURE_KD * qvel[self._motor_dof_index]
+        np.negative(q_offset, out=rhs[21 + self.nm :])
+        weighted = rows.T * self._cost_weight
+        hessian = np.matmul(weighted, rows, out=self._hessian)
+        self._hessian_diagonal += self._hessian_diag
+        gradient = np.matmul(weighted, rhs, out=self._gradient)
+        np.negative(gradient, out=gradient)
 
-        add(self._com_rows, targets.com_acceleration + np.array([0.0, 0.0, GRAVITY]), W_COM)
+        # Torque rows: tau_m = M_m qacc + h_m - J_c,m^T f = T z + t0.
+        torque_rows = self._torque_rows
+        np.subtract(mapped[18:, :nf], contact_jac[:, ne:].T, out=torque_rows[:, :nf])
+        torque_rows[:, nf:] = mapped[18:, nf:]
+        torque_offset = np.add(offset[18:], bias_perm[ne:], out=self._torque_offset)
 
-        for body, weight in ((self.pelvis, W_PELVIS), (self.torso, W_TORSO)):
-            jac, target = self._body_rot_task(model, data, body, targets.heading)
-            a = np.zeros((3, self.n))
-            a[:, nf:] = jac
-            add(a, target, weight)
-
-        for side in (Side.LEFT, Side.RIGHT):
-            jac, drift = self._site_jacobians(model, data, side)
-            a = np.zeros((6, self.n))
-            a[:, nf:] = jac
-            swing = targets.swing.get(side)
-            if swing is None:
-                add(a, -drift - STANCE_KD * (jac @ qvel), W_STANCE)
-                continue
-            site = self.sole_site[side]
-            position = data.site_xpos[site]
-            velocity = jac[:3] @ qvel
-            linear = swing.acceleration + SWING_KP * (swing.position - position) + SWING_KD * (swing.velocity - velocity)
-            error_local = np.zeros(3)
-            site_quat = np.zeros(4)
-            mujoco.mju_mat2Quat(site_quat, data.site_xmat[site])
-            mujoco.mju_subQuat(error_local, _yaw_quat(swing.yaw), site_quat)
-            error = data.site_xmat[site].reshape(3, 3) @ error_local
-            angular = SWING_KP * error + SWING_KD * (np.array([0.0, 0.0, swing.yaw_rate]) - jac[3:] @ qvel)
-            add(a, np.concatenate([linear, angular]) - drift, W_SWING)
-
-        posture_rows = self._posture_rows
-        q = data.qpos[self.motor_qpos]
-        qd = qvel[self.motor_dofs]
-        add(posture_rows, POSTURE_KP * (targets.posture - q) - POSTURE_KD * qd, self.posture_weight)
-
-        a_cost = np.vstack(rows)
-        b_cost = np.concatenate(rhs)
-        w_cost = np.concatenate(weights)
-        hessian = a_cost.T @ (a_cost * w_cost[:, None])
-        gradient = -a_cost.T @ (w_cost * b_cost)
-        hessian[np.arange(nf), np.arange(nf)] += W_REG_FORCE
-        hessian[np.arange(nf, self.n), np.arange(nf, self.n)] += W_REG_QACC
-
-        # Equalities: floating base, and servo joints (their torque is the position servo's).
-        base = self.base_dofs
-        eq_base = np.hstack([-contact_jac[:, base].T, mass_matrix[base]])
-        servo = self.servo_dofs
-        servo_act = self.servo_actuators
-        servo_torque = (
-            model.actuator_gainprm[servo_act, 0] * data.ctrl[servo_act]
-            + model.actuator_biasprm[servo_act, 0]
-            + model.actuator_biasprm[servo_act, 1] * data.qpos[self.servo_qpos]
-            + model.actuator_biasprm[servo_act, 2] * qvel[servo]
+        upper, lower = self._upper, self._lower
+        left, right = targets.load
+        normal = self._normal_index
+        upper[normal[:CORNERS_PER_FOOT]] = min(max(left, 0.0), 1.0) * self._corner_max
+        upper[normal[CORNERS_PER_FOOT:]] = min(max(right, 0.0), 1.0) * self._corner_max
+        lower[self._knee_z] = (
+            2.0 * (KNEE_MIN - data.qpos[self.knee_qpos] - qvel[self.knee_dofs] * KNEE_HORIZON) / KNEE_HORIZON**2
         )
-        servo_torque = np.clip(servo_torque, self.servo_limit[:, 0], self.servo_limit[:, 1])
-        eq_servo = np.hstack([-contact_jac[:, servo].T, mass_matrix[servo]])
-        motor = self.motor_dofs
-        torque_rows = np.hstack([-contact_jac[:, motor].T, mass_matrix[motor]])
-        friction_rows = self._friction_rows
+        n_torque = self.nm
+        np.subtract(self.torque_limit[:, 1], torque_offset, out=upper[-n_torque:])
+        np.subtract(self.torque_limit[:, 0], torque_offset, out=lower[-n_torque:])
 
-        upper_bounds = np.full(nf, 1e9)
-        lower_bounds = np.full(nf, -1e9)
-        corner_max = 1.5 * self.mass * GRAVITY
-        for i, side in enumerate((Side.LEFT, Side.RIGHT)):
-            load = float(np.clip(targets.load.get(side, 0.0), 0.0, 1.0))
-            for c in range(CORNERS_PER_FOOT):
-                z = 3 * (i * CORNERS_PER_FOOT + c) + 2
-                upper_bounds[z] = load * corner_max
-                lower_bounds[z] = 0.0
-        n_friction = friction_rows.shape[0]
-        knee_rows = self._knee_rows
-        knee_q = data.qpos[self.knee_qpos]
-        knee_min_acc = 2.0 * (KNEE_MIN - knee_q - qvel[self.knee_dofs] * KNEE_HORIZON) / KNEE_HORIZON**2
-
-        def attempt(with_torque_limits: bool) -> tuple[np.ndarray, int]:
-            blocks = [eq_base, eq_servo, friction_rows]
-            upper = [-bias[base], servo_torque - bias[servo], np.zeros(n_friction)]
-            lower = [-bias[base], servo_torque - bias[servo], np.full(n_friction, -1e9)]
-            if with_torque_limits:
-                blocks += [torque_rows, knee_rows]
-                upper += [self.torque_limit[:, 1] - bias[motor], np.full(len(knee_q), 1e9)]
-                lower += [self.torque_limit[:, 0] - bias[motor], knee_min_acc]
-            a_con = np.vstack(blocks)
-            b_up = np.concatenate([upper_bounds, *upper])
-            b_lo = np.concatenate([lower_bounds, *lower])
-            sense = np.zeros(len(b_up), dtype=np.int32)
-            sense[nf : nf + len(base) + len(servo)] = 5
-            x, _, status, _ = daqp.solve(hessian, gradient, a_con, b_up, b_lo, sense)
-            return np.asarray(x), int(status)
-
-        x, status = attempt(True)
+        z, status = self._solve_qp(hessian, gradient)
         if status < 1:
-            x, status = attempt(False)
+            # Without the torque and knee limits (as if those rows were absent).
+            lower[self._knee_z] = -UNBOUNDED
+            count = len(upper) - n_torque
+            z, _, status, _ = daqp.solve(hessian, gradient, self._constraints[:-n_torque], upper[:count], lower[:count])
+            z, status = np.asarray(z), int(status)
+            self.relaxed_count += 1
         self.last_status = status
-        if status < 1 or not np.all(np.isfinite(x)):
-            force = self.last_force
-            qacc = np.zeros(nv)
+        if status < 1 or not math.isfinite(float(z.sum())):
+            return self._fallback(status, bias_perm, contact_jac)
+        self.last_force[:] = z[:nf]
+        tau = torque_rows @ z
+        tau += torque_offset
+        return _clip(tau, self.torque_limit)
+
+    def _fallback(self, status: int, bias_perm: np.ndarray, contact_jac: np.ndarray) -> np.ndarray:
+        """No solution this step: hold with the previous contact forces and zero joint accelerations [N m]."""
+        self.last_status = status
+        self.fallback_count += 1
+        if self.fallback_count % 100 == 1:
+            _log.warning("torque QP failed (status %d, %d times so far): reusing the previous contact forces",
+                         status, self.fallback_count)
+        tau = bias_perm[self.ne :] - contact_jac[:, self.ne :].T @ self.last_force
+        return _clip(tau, self.torque_limit)
+
+    def _solve_qp(self, hessian: np.ndarray, gradient: np.ndarray) -> tuple[np.ndarray, int]:
+        """Solve the reduced QP, warm-started from the previous step's active set when there is one."""
+        if self._qp_ready:
+            self._qp.update(H=hessian, f=gradient, A=self._constraints, bupper=self._upper, blower=self._lower)
         else:
-            force, qacc = x[:nf], x[nf:]
-            self.last_force = force.copy()
-        tau = mass_matrix[motor] @ qacc + bias[motor] - contact_jac[:, motor].T @ force
-        return np.clip(tau, self.torque_limit[:, 0], self.torque_limit[:, 1])
+            self._qp.setup(hessian, gradient, self._constraints, self._upper, self._lower)
+            self._qp_ready = True
+        z, _, status, _ = self._qp.solve()
+        status = int(status)
+        if status < 1:
+            self._qp_ready = False  # start the next step from scratch
+        return np.asarray(z), status

@@ -123,7 +123,7 @@ def test_cop_clipping_keeps_inside_points_and_projects_outside_ones():
     assert len(hull) == 4
     assert clip_to_polygon(np.array([0.3, 0.4]), hull) == pytest.approx([0.3, 0.4])
     assert clip_to_polygon(np.array([2.0, 0.5]), hull) == pytest.approx([1.0, 0.5])
-    assert Footstep(Side.LEFT, np.zeros(2), 0.0).side.other is Side.RIGHT
+    assert Footstep(Side.LEFT, 0.0, 0.0, 0.0).side.other is Side.RIGHT
 
 
 # ----- closed-loop tests ----------------------------------------------------------------------
