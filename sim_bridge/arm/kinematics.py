@@ -77,7 +77,8 @@ def validate_pose(pose: Pose) -> Pose:
 
 
 def _se3(pose: Pose) -> mink.SE3:
-    return mink.SE3.from_rotation_and_translation(mink.SO3(np.asarray(pose.orientation_wxyz)), np.asarray(pose.position))
+    """The pose as a mink transform (its quaternion is already normalised by :func:`validate_pose`)."""
+    return mink.SE3(np.concatenate((np.asarray(pose.orientation_wxyz, dtype=float), np.asarray(pose.position, dtype=float))))
 
 
 # ----- arm description ---------------------------------------------------------------------------
@@ -387,6 +388,14 @@ class IKProblem:
         return iterations
 
 
+def _index(addresses: np.ndarray) -> slice | np.ndarray:
+    """A slice for consecutive addresses (a view, cheaper than gathering), else the addresses."""
+    first = int(addresses[0])
+    if np.array_equal(addresses, np.arange(first, first + len(addresses))):
+        return slice(first, first + len(addresses))
+    return addresses
+
+
 class _ReducedQP:
     """The arm-only QP of an :class:`IKProblem` (private; see its docstring).
 
@@ -416,8 +425,8 @@ class _ReducedQP:
         self.collision_rows = None if problem.collision_limit is None else _CollisionRows(
             problem.collision_limit, problem.configuration.data, info.dof_adr)
         self.site_id = info.site_id
-        self.qpos_adr = info.qpos_adr
-        self.dof_adr = info.dof_adr
+        self.qpos_adr = _index(info.qpos_adr)
+        self.dof_adr = _index(info.dof_adr)
         n = len(joint_ids)
         posture_cost = problem.posture_task.cost[info.dof_adr]
         self.posture_weight = posture_cost * posture_cost  # c_p^2, shape (n,)
@@ -514,11 +523,17 @@ class _CollisionRows:
         pairs = np.array(limit.geom_id_pairs, dtype=int).reshape(-1, 2)
         # (geom1, geom2, body1, body2) of each pair, as Python ints for the per-pair loop.
         self.pairs = [(int(a), int(b), int(model.geom_bodyid[a]), int(model.geom_bodyid[b])) for a, b in pairs]
-        self.geom1, self.geom2 = pairs[:, 0], pairs[:, 1]
-        # Planes and other unbounded geoms (rbound 0) always go to the narrow phase.
-        self.unbounded = (model.geom_rbound[self.geom1] <= 0.0) | (model.geom_rbound[self.geom2] <= 0.0)
-        reach = model.geom_rbound[self.geom1] + model.geom_rbound[self.geom2] + self.detection
-        self.sphere_reach_squared = reach * reach
+        # The pairs as cells of a grid (first geoms x second geoms), so the sphere test gathers each
+        # geom's position once: the squared reach of each cell (inf: always a candidate, -1: no pair).
+        geom1, geom2 = pairs[:, 0], pairs[:, 1]
+        self.first, self.second = np.unique(geom1), np.unique(geom2)
+        row, column = np.searchsorted(self.first, geom1), np.searchsorted(self.second, geom2)
+        reach = model.geom_rbound[geom1] + model.geom_rbound[geom2] + self.detection
+        unbounded = (model.geom_rbound[geom1] <= 0.0) | (model.geom_rbound[geom2] <= 0.0)  # planes, height fields
+        self.reach_squared = np.full((len(self.first), len(self.second)), -1.0)
+        self.reach_squared[row, column] = np.where(unbounded, np.inf, reach * reach)
+        self.pair_of_cell = np.full(self.reach_squared.shape, -1, dtype=int)
+        self.pair_of_cell[row, column] = np.arange(len(pairs))
         self._fromto = np.empty(6)
         self._normal = np.empty(3)
         self._jac1 = np.empty((3, model.nv))
@@ -529,9 +544,9 @@ class _CollisionRows:
         if len(self.pairs) < self.BROADPHASE_MIN_PAIRS:
             return list(range(len(self.pairs)))
         xpos = self.data.geom_xpos
-        offset = xpos[self.geom2] - xpos[self.geom1]
-        near = np.einsum("ij,ij->i", offset, offset) <= self.sphere_reach_squared
-        indices: list[int] = np.flatnonzero(near | self.unbounded).tolist()
+        offset = xpos[self.first][:, None, :] - xpos[self.second][None, :, :]
+        near = np.einsum("ijk,ijk->ij", offset, offset) <= self.reach_squared
+        indices: list[int] = self.pair_of_cell[near].tolist()
         return indices
 
     def compute(self, dt: float) -> tuple[np.ndarray, np.ndarray]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import mink
 import mujoco
 import numpy as np
 import pytest
@@ -327,8 +328,6 @@ def test_pick_and_place_matches_the_recorded_reference(panda_sim):
 @pytest.mark.parametrize("kind", ["tracking", "offline"])
 def test_arm_only_ik_step_equals_mink_solve_ik(robot_name, arm_name, kind, panda, g1):
     """The arm-only QP gives the displacement of mink.solve_ik on the full problem (frozen DoFs by equality)."""
-    import mink
-
     robot = panda if robot_name == "panda" else g1
     kinematics = ArmKinematics(robot)
     problem = (kinematics.tracking if kind == "tracking" else kinematics.offline)[arm_name]
@@ -360,3 +359,20 @@ def test_arm_only_ik_step_equals_mink_solve_ik(robot_name, arm_name, kind, panda
         constraint = problem.collision_limit.compute_qp_inequalities(problem.configuration, dt)
         with_collision_rows += int(np.isfinite(constraint.h).any())
     assert with_collision_rows >= 5  # the collision rows were exercised
+
+
+def test_g1_collision_model_has_the_robot_kinematics_and_mesh_hulls(g1):
+    """The IK model is recompiled so the visual meshes the arm avoids get convex hulls; nothing else changes."""
+    kinematics = ArmKinematics(g1)
+    problem = kinematics.tracking["right_arm"]
+    model = problem.model
+    for name in ("body_pos", "body_quat", "jnt_pos", "jnt_axis", "site_pos", "geom_pos", "geom_size", "geom_rbound"):
+        np.testing.assert_array_equal(getattr(model, name), getattr(g1.model, name), err_msg=name)
+    data, reference = mujoco.MjData(model), mujoco.MjData(g1.model)
+    data.qpos[:] = reference.qpos[:] = kinematics.posture_qpos
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_kinematics(g1.model, reference)
+    np.testing.assert_array_equal(data.site_xpos, reference.site_xpos)
+    meshes = {int(model.geom_dataid[g]) for pair in problem.collision_limit.geom_id_pairs for g in pair
+              if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH}
+    assert meshes and all(model.mesh_graphadr[m] >= 0 for m in meshes)
