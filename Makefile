@@ -7,7 +7,7 @@ STAMPS := $(VENV)/.stamps
 INTERFACE_FILES := $(shell find interfaces -type f)
 export MUJOCO_GL ?= egl
 
-.PHONY: setup demo test test-fast bench bench-sim bench-walk bench-arm bench-nav clean
+.PHONY: setup demo test test-fast bench bench-sim bench-walk bench-arm bench-nav bench-idle clean
 
 setup: $(STAMPS)/project
 
@@ -34,7 +34,7 @@ test: setup
 test-fast: setup
 	$(PY) -m pytest -m "not slow"
 
-bench: bench-sim bench-walk bench-arm bench-nav  ## every benchmark; figures are ratios measured in one run
+bench: bench-sim bench-walk bench-arm bench-nav bench-idle  ## every benchmark; figures are ratios measured in one run
 
 bench-sim: setup
 	$(PY) benchmarks/sim_bench.py
@@ -47,6 +47,9 @@ bench-arm: setup
 
 bench-nav: setup
 	$(PY) benchmarks/nav_bench.py
+
+bench-idle: setup
+	$(PY) benchmarks/idle_bench.py
 
 clean:
 	rm -rf $(VENV) build

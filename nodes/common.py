@@ -186,8 +186,9 @@ def guarded(node: Node, action_type: Any, execute: Callable[[ServerGoalHandle], 
 
 def spin_server(node_factory: Callable[[str, list[Parameter]], Node], node_name: str, args: list[str] | None) -> int:
     """``main`` of a server node: find the robot (parameter or /sim), build the node, spin it."""
-    from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+    from rclpy.executors import ExternalShutdownException
 
+    from nodes.executor import ServerExecutor, drop_qos_event_handlers
     from nodes.parameters import ParameterSpec, declare
 
     argv = sys.argv if args is None else args
@@ -204,7 +205,8 @@ def spin_server(node_factory: Callable[[str, list[Parameter]], Node], node_name:
     finally:
         probe.destroy_node()
     node = node_factory(robot, overrides)
-    executor = MultiThreadedExecutor(num_threads=4)
+    drop_qos_event_handlers(node)
+    executor = ServerExecutor(num_threads=4)
     executor.add_node(node)
     try:
         executor.spin()

@@ -26,7 +26,7 @@ from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy._rclpy_pybind11 import RCLError
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -38,6 +38,7 @@ from tf2_msgs.msg import TFMessage
 
 import robot_models
 from nodes.conversions import occupancy_grid_msg, set_pose, set_time
+from nodes.executor import ServerExecutor, drop_qos_event_handlers
 from nodes.parameters import ParameterSpec, declare
 from nodes.plugins import InLoopPlugins
 from nodes.serialized import ClockTemplate, JointStateTemplate, TemplateError
@@ -164,6 +165,7 @@ class SimNode(LifecycleNode):
         self._update_periods()
         self._create_interfaces()
         self.plugins = InLoopPlugins(self, self.sim, self._lock)
+        drop_qos_event_handlers(self)  # cheap executor wake-ups: the physics thread shares the GIL
         self.get_logger().info(
             f"robot {robot.name}: {len(robot.actuated_joints)} actuated joints, physics step "
             f"{robot.physics_timestep * 1e3:.1f} ms, control step {robot.control_timestep * 1e3:.1f} ms"
@@ -548,7 +550,7 @@ def main(args: list[str] | None = None) -> int:
     """Console entry point: ``sim_node --ros-args -p robot:=g1``."""
     rclpy.init(args=args)
     node = SimNode()
-    executor = MultiThreadedExecutor(num_threads=4)
+    executor = ServerExecutor(num_threads=4)
     executor.add_node(node)
     code = 0
     try:
