@@ -1,12 +1,16 @@
 """Walking benchmark for the G1 physics walking controller (prints figures; not a test).
 
 Figures:
+- the core walk (issue 9): 0.5 m/s for 10 s of sim time, stepped as one ``sim.step`` call: wall/sim,
+  controller time per control tick p50 / p95 [us], and raw ``mj_step`` time per control tick measured in
+  the same run on the walk's own states (physics alone, as wall/sim); goal wall/sim <= 0.08 at 250 Hz;
+- with --profile, where the controller's time goes (planner, QP build, solver, MuJoCo calls) [us/tick];
 - highest commanded speed among --speeds that walks --distance metres without a fall;
 - per speed: measured average speed, lateral drift [cm/m] and heading drift [deg/m];
 - wall time / sim time of a 2 m walk at 0.3 m/s;
 - controller time per control tick, p50 / p95 [ms].
 
-Run: ``PYTHONPATH=. .venv/bin/python benchmarks/walk_bench.py [--distance 20] [--speeds 0.3 0.4 0.5 0.6]``
+Run: ``PYTHONPATH=. .venv/bin/python benchmarks/walk_bench.py [--distance 20] [--speeds 0.3 0.4 0.5 0.6] [--profile]``
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ import robot_models
 from robot_models import g1_constants as names
 from sim_bridge import Simulation, Slot
 from sim_bridge.locomotion import WalkingController
+from sim_bridge.locomotion.wbc import WholeBodyQP
 
 
 @dataclass(frozen=True)
@@ -41,11 +46,13 @@ class WalkResult:
 
 
 class _TimedController:
-    """Wraps a controller to time its ``update`` calls."""
+    """Wraps a controller to time its ``update`` calls (and, if asked, keep the state after each one)."""
 
-    def __init__(self, inner: WalkingController) -> None:
+    def __init__(self, inner: WalkingController, record_states: bool = False) -> None:
         self.inner = inner
         self.times: list[float] = []
+        self.record_states = record_states
+        self.states: list[np.ndarray] = []
 
     @property
     def active(self) -> bool:
@@ -58,55 +65,109 @@ class _TimedController:
         start = time.perf_counter()
         self.inner.update(model, data, control_dt)
         self.times.append(time.perf_counter() - start)
+        if self.record_states:
+            state = np.empty(mujoco.mj_stateSize(model, _PHYSICS_STATE))
+            mujoco.mj_getState(model, data, state, _PHYSICS_STATE)
+            self.states.append(state)
 
 
-def walk(
-    robot: robot_models.RobotSpec, speed: float, distance: float, disturbance: float = 0.0, seed: int = 0
-) -> WalkResult:
-    """Walk straight at ``speed`` until ``distance`` metres are covered (or a fall, or a deadline).
+_PHYSICS_STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 
-    Args:
-        disturbance: standard deviation of a random horizontal force on the pelvis, redrawn every 0.1 s [N].
-        seed: seed of that force.
+
+@dataclass(frozen=True)
+class CoreWalk:
+    """The core walk's figures: sim and wall time [s], controller and raw physics time per control tick [s]."""
+
+    sim_time: float
+    wall_time: float
+    controller_times: np.ndarray
+    physics_times: np.ndarray
+    fell: bool
+
+
+def core_walk(robot: robot_models.RobotSpec, speed: float = 0.5, duration: float = 10.0, record: bool = True) -> CoreWalk:
+    """Walk at ``speed`` for ``duration`` seconds of sim time in one ``sim.step`` call, then time raw physics.
+
+    The raw physics figure replays every control tick of the walk from its recorded state (after the
+    controller wrote its torques) on a second MjData: ``mj_step`` over one control period, nothing else.
     """
-    rng = np.random.default_rng(seed)
     sim = Simulation(robot)
     controller = WalkingController(sim.model)
-    timed = _TimedController(controller)
+    timed = _TimedController(controller, record_states=record)
     sim.set_controller(Slot.LOCOMOTION, timed)
-    pelvis = sim.data.body(names.ROOT_BODY)
-    start = pelvis.xpos[:2].copy()
     controller.set_velocity_command(speed, 0.0, 0.0)
-    deadline = sim.time + distance / speed + 8.0
+    ticks = round(duration / sim.control_timestep)
     wall_start = time.perf_counter()
-    sim_start = sim.time
-    fell = False
-    cruise_start: tuple[float, float] | None = None
-    pelvis_id = sim.model.body(names.ROOT_BODY).id
-    redraw = max(1, round(0.1 / sim.control_timestep))
-    ticks = 0
-    while pelvis.xpos[0] - start[0] < distance and sim.time < deadline:
-        if disturbance > 0.0 and ticks % redraw == 0:
-            sim.data.xfrc_applied[pelvis_id, :2] = rng.normal(0.0, disturbance, 2)
-        sim.step(1)
-        ticks += 1
-        if controller.status().fallen:
-            fell = True
-            break
-        if cruise_start is None and pelvis.xpos[0] - start[0] >= 1.0:
-            cruise_start = (float(pelvis.xpos[0]), sim.time)
+    sim.step(ticks)
     wall = time.perf_counter() - wall_start
-    travelled = pelvis.xpos[:2] - start
-    yaw = math.degrees(math.atan2(pelvis.xmat[3], pelvis.xmat[0]))
-    covered = max(float(travelled[0]), 1e-6)
-    average = (pelvis.xpos[0] - cruise_start[0]) / max(sim.time - cruise_start[1], 1e-6) if cruise_start else 0.0
-    result = WalkResult(
-        speed=speed, fell=fell, distance=float(travelled[0]), sim_time=sim.time - sim_start, wall_time=wall,
-        lateral_drift_per_m=abs(float(travelled[1])) / covered, heading_drift_per_m=abs(yaw) / covered,
-        average_speed=float(average), tick_times=np.array(timed.times),
-    )
+    fell = controller.status().fallen
+    replay = mujoco.MjData(sim.model)  # the model still has the legs in torque mode, as during the walk
+    physics = np.zeros(len(timed.states))
+    for k, state in enumerate(timed.states):
+        mujoco.mj_setState(sim.model, replay, state, _PHYSICS_STATE)
+        start = time.perf_counter()
+        mujoco.mj_step(sim.model, replay, nstep=sim.decimation)
+        physics[k] = time.perf_counter() - start
     sim.reset()
-    return result
+    return CoreWalk(duration, wall, np.array(timed.times), physics, fell)
+
+
+class PartTimer:
+    """Times named methods of the controller's classes while installed (``with PartTimer(): ...``).
+
+    The wrappers cost ~0.3 us per call, a few calls per tick, so the parts add up to the measured tick.
+    """
+
+    PARTS = (
+        ("update", WalkingController, "update"),
+        ("qp", WholeBodyQP, "solve"),
+        ("kinematics", WholeBodyQP, "_kinematics"),
+        ("solver", WholeBodyQP, "_solve_qp"),
+        ("com", WalkingController, "_com_jacobian"),
+    )
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = {name: 0.0 for name, _, _ in self.PARTS}
+        self._originals: list[tuple[type, str, object]] = []
+
+    def __enter__(self) -> PartTimer:
+        for name, owner, attribute in self.PARTS:
+            original = getattr(owner, attribute)
+            self._originals.append((owner, attribute, original))
+            setattr(owner, attribute, self._timed(name, original))
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for owner, attribute, original in self._originals:
+            setattr(owner, attribute, original)
+        self._originals.clear()
+
+    def _timed(self, name: str, function):  # type: ignore[no-untyped-def]
+        seconds = self.seconds
+        clock = time.perf_counter
+
+        def timed(*args, **kwargs):  # type: ignore[no-untyped-def]
+            start = clock()
+            result = function(*args, **kwargs)
+            seconds[name] += clock() - start
+            return result
+
+        return timed
+
+    def print(self, ticks: int, wall: float) -> None:
+        """The per-part table, us per control tick."""
+        t = {name: 1e6 * value / ticks for name, value in self.seconds.items()}
+        rows = [
+            ("planner + gait state machine (Python)", t["update"] - t["qp"] - t["com"]),
+            ("QP build (numpy, LAPACK elimination)", t["qp"] - t["solver"] - t["kinematics"]),
+            ("QP solver (DAQP update + solve)", t["solver"]),
+            ("MuJoCo calls (M, Jacobians)", t["kinematics"] + t["com"]),
+            ("controller total", t["update"]),
+            ("physics and simulation loop", 1e6 * wall / ticks - t["update"]),
+        ]
+        print("controller parts (us per control tick, timers around the parts):")
+        for label, value in rows:
+            print(f"  {label:40s} {value:8.1f}")
 
 
 def main() -> None:
@@ -116,8 +177,28 @@ def main() -> None:
                         help="std of a random horizontal pelvis force, redrawn every 0.1 s [N]; 0 = none")
     parser.add_argument("--seeds", type=int, default=1, help="runs per speed (seeds of the disturbance)")
     parser.add_argument("--speeds", type=float, nargs="+", default=[0.3, 0.4, 0.5, 0.6], help="commanded speeds [m/s]")
+    parser.add_argument("--profile", action="store_true", help="also profile the core walk per part (cProfile)")
+    parser.add_argument("--core-only", action="store_true", help="only the core walk figures")
     args = parser.parse_args()
     robot = robot_models.load("g1")
+
+    core = core_walk(robot)
+    us = 1e6
+    ctl, phys = core.controller_times * us, core.physics_times * us
+    print(f"core walk 0.5 m/s for {core.sim_time:g} s{' (FELL)' if core.fell else ''}: "
+          f"wall/sim {core.wall_time / core.sim_time:.3f} ({core.sim_time / core.wall_time:.1f}x real time; goal <= 0.08)")
+    print(f"  controller per tick: p50 {np.percentile(ctl, 50):.0f} us, p95 {np.percentile(ctl, 95):.0f} us "
+          f"({len(ctl)} ticks at {len(ctl) / core.sim_time:.0f} Hz)")
+    print(f"  raw mj_step per tick (same run, the walk's states): p50 {np.percentile(phys, 50):.0f} us, "
+          f"p95 {np.percentile(phys, 95):.0f} us; physics alone wall/sim {phys.sum() / us / core.sim_time:.3f}")
+    rest = core.wall_time * us / len(ctl) - np.mean(ctl) - np.mean(phys)
+    print(f"  rest (simulation loop, mj_step1/2 split): {rest:.0f} us per tick")
+    if args.profile:
+        with PartTimer() as parts:
+            profiled = core_walk(robot, record=False)
+        parts.print(len(profiled.controller_times), profiled.wall_time)
+    if args.core_only:
+        return
 
     print(f"{'cmd m/s':>8} {'seed':>4} {'fell':>5} {'dist m':>7} {'speed m/s':>9} {'lat cm/m':>9} {'yaw deg/m':>9} {'sim s':>6} {'wall s':>7}")
     best = None

@@ -612,10 +612,14 @@ class WalkingController:
                 points.append((px + (r00 * a + r01 * b), py + (r10 * a + r11 * b)))
         return hull_of(points)
 
-    def _targets(self, model: mujoco.MjModel, data: mujoco.MjData, feet: tuple[Footstep, Footstep]) -> WbcTargets:
+    def _com_jacobian(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+        """The CoM Jacobian, shape (3, nv) [m/rad or 1]."""
         mujoco.mj_jacSubtreeCom(model, data, self._jac_com, self._pelvis)
+        return self._jac_com
+
+    def _targets(self, model: mujoco.MjModel, data: mujoco.MjData, feet: tuple[Footstep, Footstep]) -> WbcTargets:
         com = data.subtree_com[self._pelvis]
-        com_vel = self._jac_com @ data.qvel
+        com_vel = self._com_jacobian(model, data) @ data.qvel
         cx, cy, cz = float(com[0]), float(com[1]), float(com[2])
         vx, vy, vz = float(com_vel[0]), float(com_vel[1]), float(com_vel[2])
         omega = self._omega

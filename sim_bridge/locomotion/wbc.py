@@ -129,6 +129,7 @@ class WholeBodyQP:
         self.knee_qpos = np.array([model.joint(j).qposadr[0] for j in knees])
         self.knee_dofs = np.array([model.joint(j).dofadr[0] for j in knees])
         self._knee_z = np.array([nf + motor_joints.index(j) for j in knees])  # their column in z
+        self._knees = list(zip(self._knee_z.tolist(), self.knee_qpos.tolist(), self.knee_dofs.tolist()))
         self.torque_limit = np.array([model.jnt_actfrcrange[model.joint(j).id] for j in motor_joints])
         self.servo_limit = np.array([model.jnt_actfrcrange[model.joint(j).id] for j in servo_joints])
         leg = set(names.LEFT_LEG_JOINTS + names.RIGHT_LEG_JOINTS)
@@ -168,7 +169,8 @@ class WholeBodyQP:
         self._servo_torque = np.zeros(len(self.servo_dofs))
 
         # Elimination: [K_f | K_m | k0] = M_EE^-1 [J_c,E^T | -M_Em | tau_E - h_E]; qacc = Q z + q0.
-        self._elim_rhs = np.zeros((ne, self.nz + 1))
+        self._elim_rhs = np.zeros((ne, self.nz + 1), order="F")  # LAPACK solves it in place
+        self._mass_ee = np.zeros((ne, ne), order="F")
         self._q_map = np.zeros((nv, self.nz))
         self._q_map[ne:, nf:] = np.eye(nm)
 
@@ -185,6 +187,7 @@ class WholeBodyQP:
         self._task_rows = self._cost_rows[3:21]
         self._hessian_diag = np.concatenate([np.full(nf, W_REG_FORCE), np.full(nm, W_REG_QACC)])
         self._hessian = np.zeros((self.nz, self.nz))
+        self._weighted = np.zeros((self.nz, n_cost))
         self._hessian_diagonal = self._hessian.reshape(-1)[:: self.nz + 1]  # a view of its diagonal
         self._gradient = np.zeros(self.nz)
         self._mapped = np.zeros((18 + nm, self.nz))
@@ -204,8 +207,9 @@ class WholeBodyQP:
         self._upper[: self.nz] = UNBOUNDED
         self._lower[: self.nz] = -UNBOUNDED
         self._lower[self.nz : self.nz + n_friction] = -UNBOUNDED
-        self._normal_index = np.arange(2, nf, 3)  # f_z of every corner
-        self._lower[self._normal_index] = 0.0
+        half = 3 * CORNERS_PER_FOOT
+        self._normal_index = (slice(2, half, 3), slice(half + 2, nf, 3))  # f_z of the left, right corners
+        self._lower[2:nf:3] = 0.0
         self._corner_max = 1.5 * self.mass * GRAVITY
         self._qp = daqp.Model()
         self._qp_ready = False
@@ -240,9 +244,15 @@ class WholeBodyQP:
         self._yaw_quat[0] = math.cos(half)
         self._yaw_quat[3] = math.sin(half)
 
-    def _fill_tasks(self, model: mujoco.MjModel, data: mujoco.MjData, targets: WbcTargets) -> None:
-        """Task Jacobians (18, nv) and their time derivatives, weights and right-hand sides [m/s^2, rad/s^2]."""
-        jac, jac_dot, qvel = self._task_jac, self._task_jac_dot, data.qvel
+    def _kinematics(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """The MuJoCo quantities of this step: M (nv, nv), the sole-corner Jacobians (nf, nv), the task
+        Jacobians (18, nv) and their time derivatives, all in MuJoCo's dof order."""
+        mujoco.mj_fullM(model, data, self._mass_matrix)
+        for side in (0, 1):
+            body = self.foot_body[side]
+            for c, corner in enumerate(self.corners(data, side)):
+                mujoco.mj_jac(model, data, self._corner_jac[4 * side + c], None, corner, body)
+        jac, jac_dot = self._task_jac, self._task_jac_dot
         for row, body in ((0, self.pelvis), (3, self.torso)):
             mujoco.mj_jacBody(model, data, None, jac[row : row + 3], body)
             mujoco.mj_jacDot(model, data, None, jac_dot[row : row + 3], data.xpos[body], body)
@@ -251,7 +261,10 @@ class WholeBodyQP:
             site, body = self.sole_site[side], self.foot_body[side]
             mujoco.mj_jacSite(model, data, jac[row : row + 3], jac[row + 3 : row + 6], site)
             mujoco.mj_jacDot(model, data, jac_dot[row : row + 3], jac_dot[row + 3 : row + 6], data.site_xpos[site], body)
-        drift_velocity = self._rows[:36] @ qvel
+
+    def _fill_tasks(self, data: mujoco.MjData, targets: WbcTargets) -> None:
+        """Task weights and right-hand sides [m/s^2, rad/s^2] from the Jacobians of :meth:`_kinematics`."""
+        drift_velocity = self._rows[:36] @ data.qvel
         velocity = drift_velocity[18:]
         rhs = self._task_rhs
         self._set_yaw_quat(targets.heading)
@@ -303,16 +316,12 @@ class WholeBodyQP:
         """
         nf, ne, nz = FORCE_BLOCK, self.ne, self.nz
         qvel = data.qvel
+        self._kinematics(model, data)
         mass = self._mass_matrix
-        mujoco.mj_fullM(model, data, mass)
         bias = np.subtract(data.qfrc_bias, data.qfrc_passive, out=self._bias)
         bias_perm = bias[self._perm]
-        for side in (0, 1):
-            body = self.foot_body[side]
-            for c, corner in enumerate(self.corners(data, side)):
-                mujoco.mj_jac(model, data, self._corner_jac[4 * side + c], None, corner, body)
         contact_jac = self._contact_jac.take(self._perm, axis=1)  # (nf, nv), columns [E, m]
-        self._fill_tasks(model, data, targets)
+        self._fill_tasks(data, targets)
         self._motor_mass[:] = mass[self._motor_dof_index]
 
         # Eliminate the equality rows: qacc_E = K z + k0.
@@ -322,7 +331,8 @@ class WholeBodyQP:
         np.negative(mass_e[:, ne:], out=elim[:, nf:nz])
         np.negative(bias_perm[:6], out=elim[:6, nz])
         np.subtract(self._servo_torques(data), bias_perm[6:ne], out=elim[6:, nz])
-        _, solved, info = lapack.dposv(mass_e[:, :ne], elim)
+        self._mass_ee[:] = mass_e[:, :ne]
+        _, solved, info = lapack.dposv(self._mass_ee, elim, overwrite_a=1, overwrite_b=1)
         if info != 0:  # M_EE not positive definite: only with a broken state (e.g. NaN)
             return self._fallback(FACTORISATION_FAILED, bias_perm, contact_jac)
         q_map = self._q_map
@@ -346,7 +356,7 @@ class WholeBodyQP:
         posture *= POSTURE_KP
         posture -= POSTURE_KD * qvel[self._motor_dof_index]
         np.negative(q_offset, out=rhs[21 + self.nm :])
-        weighted = rows.T * self._cost_weight
+        weighted = np.multiply(rows.T, self._cost_weight, out=self._weighted)
         hessian = np.matmul(weighted, rows, out=self._hessian)
         self._hessian_diagonal += self._hessian_diag
         gradient = np.matmul(weighted, rhs, out=self._gradient)
@@ -361,11 +371,11 @@ class WholeBodyQP:
         upper, lower = self._upper, self._lower
         left, right = targets.load
         normal = self._normal_index
-        upper[normal[:CORNERS_PER_FOOT]] = min(max(left, 0.0), 1.0) * self._corner_max
-        upper[normal[CORNERS_PER_FOOT:]] = min(max(right, 0.0), 1.0) * self._corner_max
-        lower[self._knee_z] = (
-            2.0 * (KNEE_MIN - data.qpos[self.knee_qpos] - qvel[self.knee_dofs] * KNEE_HORIZON) / KNEE_HORIZON**2
-        )
+        upper[normal[0]] = min(max(left, 0.0), 1.0) * self._corner_max
+        upper[normal[1]] = min(max(right, 0.0), 1.0) * self._corner_max
+        qpos = data.qpos
+        for column, qpos_adr, dof in self._knees:
+            lower[column] = 2.0 * (KNEE_MIN - qpos[qpos_adr] - qvel[dof] * KNEE_HORIZON) / KNEE_HORIZON**2
         n_torque = self.nm
         np.subtract(self.torque_limit[:, 1], torque_offset, out=upper[-n_torque:])
         np.subtract(self.torque_limit[:, 0], torque_offset, out=lower[-n_torque:])
@@ -379,7 +389,7 @@ class WholeBodyQP:
             z, status = np.asarray(z), int(status)
             self.relaxed_count += 1
         self.last_status = status
-        if status < 1 or not math.isfinite(float(z.sum())):
+        if status < 1 or not math.isfinite(float(z @ z)):
             return self._fallback(status, bias_perm, contact_jac)
         self.last_force[:] = z[:nf]
         tau = torque_rows @ z
