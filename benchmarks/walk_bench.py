@@ -19,6 +19,7 @@ import argparse
 import math
 import time
 from dataclasses import dataclass
+from typing import Self
 
 import mujoco
 import numpy as np
@@ -52,7 +53,13 @@ class _TimedController:
         self.inner = inner
         self.times: list[float] = []
         self.record_states = record_states
-        self.states: list[np.ndarray] = []
+        self.states = np.empty((0, 0))  # (ticks, state size), preallocated by ``reserve``
+        self.recorded = 0
+
+    def reserve(self, model: mujoco.MjModel, ticks: int) -> None:
+        """Preallocate room for ``ticks`` recorded states (recording then costs one ``mj_getState``)."""
+        self.states = np.empty((ticks, mujoco.mj_stateSize(model, _PHYSICS_STATE)))
+        self.recorded = 0
 
     @property
     def active(self) -> bool:
@@ -65,10 +72,9 @@ class _TimedController:
         start = time.perf_counter()
         self.inner.update(model, data, control_dt)
         self.times.append(time.perf_counter() - start)
-        if self.record_states:
-            state = np.empty(mujoco.mj_stateSize(model, _PHYSICS_STATE))
-            mujoco.mj_getState(model, data, state, _PHYSICS_STATE)
-            self.states.append(state)
+        if self.record_states and self.recorded < len(self.states):
+            mujoco.mj_getState(model, data, self.states[self.recorded], _PHYSICS_STATE)
+            self.recorded += 1
 
 
 _PHYSICS_STATE = mujoco.mjtState.mjSTATE_INTEGRATION
@@ -76,10 +82,11 @@ _PHYSICS_STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 
 @dataclass(frozen=True)
 class CoreWalk:
-    """The core walk's figures: sim and wall time [s], controller and raw physics time per control tick [s]."""
+    """The core walk's figures: sim, wall and process CPU time [s], controller and raw physics time per tick [s]."""
 
     sim_time: float
     wall_time: float
+    cpu_time: float
     controller_times: np.ndarray
     physics_times: np.ndarray
     fell: bool
@@ -97,19 +104,70 @@ def core_walk(robot: robot_models.RobotSpec, speed: float = 0.5, duration: float
     sim.set_controller(Slot.LOCOMOTION, timed)
     controller.set_velocity_command(speed, 0.0, 0.0)
     ticks = round(duration / sim.control_timestep)
-    wall_start = time.perf_counter()
+    if record:
+        timed.reserve(sim.model, ticks)
+    wall_start, cpu_start = time.perf_counter(), time.process_time()
     sim.step(ticks)
-    wall = time.perf_counter() - wall_start
+    wall, cpu = time.perf_counter() - wall_start, time.process_time() - cpu_start
     fell = controller.status().fallen
     replay = mujoco.MjData(sim.model)  # the model still has the legs in torque mode, as during the walk
-    physics = np.zeros(len(timed.states))
-    for k, state in enumerate(timed.states):
+    physics = np.zeros(timed.recorded)
+    for k, state in enumerate(timed.states[: timed.recorded]):
         mujoco.mj_setState(sim.model, replay, state, _PHYSICS_STATE)
         start = time.perf_counter()
         mujoco.mj_step(sim.model, replay, nstep=sim.decimation)
         physics[k] = time.perf_counter() - start
     sim.reset()
-    return CoreWalk(duration, wall, np.array(timed.times), physics, fell)
+    return CoreWalk(duration, wall, cpu, np.array(timed.times), physics, fell)
+
+
+def walk(
+    robot: robot_models.RobotSpec, speed: float, distance: float, disturbance: float = 0.0, seed: int = 0
+) -> WalkResult:
+    """Walk straight at ``speed`` until ``distance`` metres are covered (or a fall, or a deadline).
+
+    Args:
+        disturbance: standard deviation of a random horizontal force on the pelvis, redrawn every 0.1 s [N].
+        seed: seed of that force.
+    """
+    rng = np.random.default_rng(seed)
+    sim = Simulation(robot)
+    controller = WalkingController(sim.model)
+    timed = _TimedController(controller)
+    sim.set_controller(Slot.LOCOMOTION, timed)
+    pelvis = sim.data.body(names.ROOT_BODY)
+    start = pelvis.xpos[:2].copy()
+    controller.set_velocity_command(speed, 0.0, 0.0)
+    deadline = sim.time + distance / speed + 8.0
+    wall_start = time.perf_counter()
+    sim_start = sim.time
+    fell = False
+    cruise_start: tuple[float, float] | None = None
+    pelvis_id = sim.model.body(names.ROOT_BODY).id
+    redraw = max(1, round(0.1 / sim.control_timestep))
+    ticks = 0
+    while pelvis.xpos[0] - start[0] < distance and sim.time < deadline:
+        if disturbance > 0.0 and ticks % redraw == 0:
+            sim.data.xfrc_applied[pelvis_id, :2] = rng.normal(0.0, disturbance, 2)
+        sim.step(1)
+        ticks += 1
+        if controller.status().fallen:
+            fell = True
+            break
+        if cruise_start is None and pelvis.xpos[0] - start[0] >= 1.0:
+            cruise_start = (float(pelvis.xpos[0]), sim.time)
+    wall = time.perf_counter() - wall_start
+    travelled = pelvis.xpos[:2] - start
+    yaw = math.degrees(math.atan2(pelvis.xmat[3], pelvis.xmat[0]))
+    covered = max(float(travelled[0]), 1e-6)
+    average = (pelvis.xpos[0] - cruise_start[0]) / max(sim.time - cruise_start[1], 1e-6) if cruise_start else 0.0
+    result = WalkResult(
+        speed=speed, fell=fell, distance=float(travelled[0]), sim_time=sim.time - sim_start, wall_time=wall,
+        lateral_drift_per_m=abs(float(travelled[1])) / covered, heading_drift_per_m=abs(yaw) / covered,
+        average_speed=float(average), tick_times=np.array(timed.times),
+    )
+    sim.reset()
+    return result
 
 
 class PartTimer:
@@ -130,7 +188,7 @@ class PartTimer:
         self.seconds: dict[str, float] = {name: 0.0 for name, _, _ in self.PARTS}
         self._originals: list[tuple[type, str, object]] = []
 
-    def __enter__(self) -> PartTimer:
+    def __enter__(self) -> Self:
         for name, owner, attribute in self.PARTS:
             original = getattr(owner, attribute)
             self._originals.append((owner, attribute, original))
@@ -193,6 +251,8 @@ def main() -> None:
           f"p95 {np.percentile(phys, 95):.0f} us; physics alone wall/sim {phys.sum() / us / core.sim_time:.3f}")
     rest = core.wall_time * us / len(ctl) - np.mean(ctl) - np.mean(phys)
     print(f"  rest (simulation loop, mj_step1/2 split): {rest:.0f} us per tick")
+    print(f"  process CPU / wall during the walk {core.cpu_time / core.wall_time:.2f} "
+          f"(below ~0.95: other processes took the core; CPU/sim {core.cpu_time / core.sim_time:.3f})")
     if args.profile:
         with PartTimer() as parts:
             profiled = core_walk(robot, record=False)

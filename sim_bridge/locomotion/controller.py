@@ -70,7 +70,7 @@ VELOCITY_FILTER_TIME = 0.5  # [s]
 
 Velocity = tuple[float, float, float]  # (vx [m/s], vy [m/s], wz [rad/s]) in the heading frame
 _ZERO: Velocity = (0.0, 0.0, 0.0)
-_CORNER_SIGNS = ((1, 1), (1, -1), (-1, 1), (-1, -1))
+_CORNER_SIGNS = ((1, 1), (-1, 1), (-1, -1), (1, -1))  # counter-clockwise around the sole
 
 
 class _Phase(enum.Enum):
@@ -105,6 +105,15 @@ class WalkingController:
             switched to torque mode while walking and restored afterwards.
         params: gait parameters (defaults: 0.35 s swing, 0.10 s double support, 6 cm swing height).
     """
+
+    # Gait state (set by _init_state).
+    _phase: _Phase
+    _phase_time: float  # [s]
+    _phase_duration: float  # [s]
+    _velocity: Velocity  # rate-limited command
+    _measured: Velocity  # filtered measured base velocity
+    _steps: int
+    _swing_landing: Footstep | None  # the nominal swing target moved by step adjustment
 
     def __init__(self, model: mujoco.MjModel, params: GaitParameters | None = None) -> None:
         self._params = params or GaitParameters()
@@ -262,9 +271,9 @@ class WalkingController:
         self._phase = _Phase.IDLE
         self._phase_time = 0.0
         self._phase_duration = 0.0
-        self._velocity: Velocity = _ZERO  # rate-limited command
+        self._velocity = _ZERO
         self._stopping = False
-        self._measured: Velocity = _ZERO
+        self._measured = _ZERO
         self._steps = 0
         self._stance = Side.RIGHT
         self._zmp_start: Point = (0.0, 0.0)
@@ -275,7 +284,7 @@ class WalkingController:
         self._swing_start = (0.0, 0.0, 0.0)  # sole position at lift-off [m]
         self._swing_start_yaw = 0.0
         self._swing_target = Footstep(Side.LEFT, 0.0, 0.0, 0.0)  # nominal landing of the current swing
-        self._swing_landing: Footstep | None = None  # the nominal target moved by step adjustment
+        self._swing_landing = None
         self._swing_closing = False
         self._landed_closing = False
         self._speed_correction = 0.0
@@ -337,21 +346,22 @@ class WalkingController:
         """The measured soles (left, right): centre (x, y) [m] and yaw [rad] in world."""
         left, right = self._sole_site
         xpos, xmat = data.site_xpos, data.site_xmat
-        lp, lm = xpos[left], xmat[left]
-        rp, rm = xpos[right], xmat[right]
+        lx, ly, _ = xpos[left].tolist()
+        rx, ry, _ = xpos[right].tolist()
+        lm, rm = xmat[left].tolist(), xmat[right].tolist()
         return (
-            Footstep(Side.LEFT, float(lp[0]), float(lp[1]), math.atan2(lm[3], lm[0])),
-            Footstep(Side.RIGHT, float(rp[0]), float(rp[1]), math.atan2(rm[3], rm[0])),
+            Footstep(Side.LEFT, lx, ly, math.atan2(lm[3], lm[0])),
+            Footstep(Side.RIGHT, rx, ry, math.atan2(rm[3], rm[0])),
         )
 
     def _instant_velocity(self, data: mujoco.MjData) -> Velocity:
         """Pelvis (vx, vy) in its heading frame [m/s] and yaw rate [rad/s]."""
-        mat = data.xmat[self._pelvis]
-        qvel = data.qvel
+        mat = data.xmat[self._pelvis].tolist()
         b = self._base_dof
-        vx, vy = unrotate(math.atan2(mat[3], mat[0]), float(qvel[b]), float(qvel[b + 1]))
-        yaw_rate = mat[6] * qvel[b + 3] + mat[7] * qvel[b + 4] + mat[8] * qvel[b + 5]
-        return vx, vy, float(yaw_rate)
+        qvel = data.qvel[b : b + 6].tolist()
+        vx, vy = unrotate(math.atan2(mat[3], mat[0]), qvel[0], qvel[1])
+        yaw_rate = mat[6] * qvel[3] + mat[7] * qvel[4] + mat[8] * qvel[5]
+        return vx, vy, yaw_rate
 
     def _measure(self, data: mujoco.MjData, dt: float) -> None:
         alpha = min(1.0, dt / VELOCITY_FILTER_TIME)
@@ -561,7 +571,7 @@ class WalkingController:
             frame_pos, frame_yaw = self._frame_pos, self._frame_yaw
             support = stance
             closing = False
-        total = sum(preview.durations) - self._phase_time
+        total = preview.total_duration - self._phase_time
         while total < HORIZON:
             if self._stopping and closing:
                 break
@@ -574,8 +584,10 @@ class WalkingController:
             total += t_ds + t_ss
             support = footstep
         if self._stopping and closing:
-            last = (preview.end_x[-1], preview.end_y[-1])
-            mid = _midpoint(last, (preview.start_x[-2], preview.start_y[-2]))
+            _, _, _, last_x, last_y = preview.pieces[-1]
+            _, before_x, before_y, _, _ = preview.pieces[-2]
+            last = (last_x, last_y)
+            mid = _midpoint(last, (before_x, before_y))
             preview.add(SETTLE_DURATION, last, mid)
             preview.add(1.0, mid, mid)
 
@@ -599,18 +611,21 @@ class WalkingController:
 
     # ----- tasks ------------------------------------------------------------------------
     def _support_hull(self, data: mujoco.MjData, sides: tuple[int, ...]) -> list[Point]:
-        """The support polygon (counter-clockwise), shrunk by the support margin, world frame [m]."""
+        """The support polygon (counter-clockwise), shrunk by the support margin, world frame [m].
+
+        One sole's polygon is its rectangle, already convex and in counter-clockwise order; two soles
+        take the convex hull of their eight corners.
+        """
         hx, hy = self._sole_half
         points: list[Point] = []
         for side in sides:
             site = self._sole_site[side]
-            px, py = float(data.site_xpos[site][0]), float(data.site_xpos[site][1])
-            m = data.site_xmat[site]
-            r00, r01, r10, r11 = float(m[0]), float(m[1]), float(m[3]), float(m[4])
+            px, py, _ = data.site_xpos[site].tolist()
+            r00, r01, _, r10, r11, _, _, _, _ = data.site_xmat[site].tolist()
             for sx, sy in _CORNER_SIGNS:
                 a, b = sx * hx, sy * hy
                 points.append((px + (r00 * a + r01 * b), py + (r10 * a + r11 * b)))
-        return hull_of(points)
+        return points if len(sides) == 1 else hull_of(points)
 
     def _com_jacobian(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
         """The CoM Jacobian, shape (3, nv) [m/rad or 1]."""
@@ -618,10 +633,8 @@ class WalkingController:
         return self._jac_com
 
     def _targets(self, model: mujoco.MjModel, data: mujoco.MjData, feet: tuple[Footstep, Footstep]) -> WbcTargets:
-        com = data.subtree_com[self._pelvis]
-        com_vel = self._com_jacobian(model, data) @ data.qvel
-        cx, cy, cz = float(com[0]), float(com[1]), float(com[2])
-        vx, vy, vz = float(com_vel[0]), float(com_vel[1]), float(com_vel[2])
+        cx, cy, cz = data.subtree_com[self._pelvis].tolist()
+        vx, vy, vz = (self._com_jacobian(model, data) @ data.qvel).tolist()
         omega = self._omega
         self._fill_preview(feet)
         first_end_dcm = self._preview.dcm_at_first_end(omega)

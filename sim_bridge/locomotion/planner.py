@@ -86,36 +86,29 @@ class DcmReference(NamedTuple):
 class ZmpPreview:
     """The ZMP reference ahead, as linear pieces; the first piece is the current one.
 
-    Stored as flat lists of floats, cleared and refilled every control step without new objects
-    beyond the floats themselves.
+    Each piece is a tuple (duration [s], start x, start y, end x, end y [m]) in one list, cleared and
+    refilled every control step.
     """
 
-    __slots__ = ("durations", "start_x", "start_y", "end_x", "end_y")
+    __slots__ = ("pieces",)
 
     def __init__(self) -> None:
-        self.durations: list[float] = []
-        self.start_x: list[float] = []
-        self.start_y: list[float] = []
-        self.end_x: list[float] = []
-        self.end_y: list[float] = []
+        self.pieces: list[tuple[float, float, float, float, float]] = []
 
     def clear(self) -> None:
-        self.durations.clear()
-        self.start_x.clear()
-        self.start_y.clear()
-        self.end_x.clear()
-        self.end_y.clear()
+        self.pieces.clear()
 
     def add(self, duration: float, start: Point, end: Point) -> None:
         """Append a piece of ``duration`` [s] from ``start`` to ``end`` [m]."""
-        self.durations.append(duration)
-        self.start_x.append(start[0])
-        self.start_y.append(start[1])
-        self.end_x.append(end[0])
-        self.end_y.append(end[1])
+        self.pieces.append((duration, start[0], start[1], end[0], end[1]))
 
     def __len__(self) -> int:
-        return len(self.durations)
+        return len(self.pieces)
+
+    @property
+    def total_duration(self) -> float:
+        """Sum of the pieces' durations [s]."""
+        return sum(piece[0] for piece in self.pieces)
 
     def dcm_at_first_end(self, omega: float) -> Point:
         """The DCM at the end of the first piece [m].
@@ -127,16 +120,16 @@ class ZmpPreview:
         Args:
             omega: LIPM natural frequency sqrt(g / z_c) [1/s].
         """
-        durations, sx, sy, ex, ey = self.durations, self.start_x, self.start_y, self.end_x, self.end_y
-        xi_x, xi_y = ex[-1], ey[-1]
-        for i in range(len(durations) - 1, 0, -1):
-            duration = durations[i]
+        pieces = self.pieces
+        xi_x, xi_y = pieces[-1][3], pieces[-1][4]
+        for i in range(len(pieces) - 1, 0, -1):
+            duration, sx, sy, ex, ey = pieces[i]
             scale = max(duration, 1e-9)
-            lead_x = (ex[i] - sx[i]) / scale / omega
-            lead_y = (ey[i] - sy[i]) / scale / omega
+            lead_x = (ex - sx) / scale / omega
+            lead_y = (ey - sy) / scale / omega
             decay = math.exp(-omega * duration)
-            xi_x = sx[i] + lead_x + decay * (xi_x - ex[i] - lead_x)
-            xi_y = sy[i] + lead_y + decay * (xi_y - ey[i] - lead_y)
+            xi_x = sx + lead_x + decay * (xi_x - ex - lead_x)
+            xi_y = sy + lead_y + decay * (xi_y - ey - lead_y)
         return xi_x, xi_y
 
     def reference(self, elapsed: float, omega: float, first_end_dcm: Point) -> DcmReference:
@@ -147,15 +140,16 @@ class ZmpPreview:
             omega: LIPM natural frequency [1/s].
             first_end_dcm: :meth:`dcm_at_first_end` of this preview [m].
         """
-        duration = max(self.durations[0], 1e-9)
+        first_duration, sx, sy, ex, ey = self.pieces[0]
+        duration = max(first_duration, 1e-9)
         t = min(max(elapsed, 0.0), duration)
-        slope_x = (self.end_x[0] - self.start_x[0]) / duration
-        slope_y = (self.end_y[0] - self.start_y[0]) / duration
-        zmp_x = self.start_x[0] + slope_x * t
-        zmp_y = self.start_y[0] + slope_y * t
+        slope_x = (ex - sx) / duration
+        slope_y = (ey - sy) / duration
+        zmp_x = sx + slope_x * t
+        zmp_y = sy + slope_y * t
         decay = math.exp(omega * (t - duration))
-        dcm_x = zmp_x + slope_x / omega + decay * (first_end_dcm[0] - self.end_x[0] - slope_x / omega)
-        dcm_y = zmp_y + slope_y / omega + decay * (first_end_dcm[1] - self.end_y[0] - slope_y / omega)
+        dcm_x = zmp_x + slope_x / omega + decay * (first_end_dcm[0] - ex - slope_x / omega)
+        dcm_y = zmp_y + slope_y / omega + decay * (first_end_dcm[1] - ey - slope_y / omega)
         return DcmReference(zmp_x, zmp_y, dcm_x, dcm_y)
 
 

@@ -15,6 +15,10 @@ accelerations they determine. With E the base and servo dofs and m the motor dof
 so the QP is posed in z = [f, qacc_m] alone (24 + 15 variables, no equality rows) and every cost
 and constraint row is mapped through qacc = Q z + q0. It is solved with DAQP, warm-started from the
 previous control step's active set (the reduced problem has the same dimensions every step).
+(Posing it in z = [f, tau_m] instead, with qacc from ``mj_solveM``, would make the torque limits
+simple bounds, but that Hessian's condition number is ~1e14 and its optimum came out ~0.5 N m off.)
+M_EE^-1 is applied with LAPACK's Cholesky solver (``dposv``, from SciPy, which the QP stack already
+depends on).
 """
 
 from __future__ import annotations
@@ -83,6 +87,13 @@ class WbcTargets:
     posture: np.ndarray
 
 
+def _block(matrix: np.ndarray, rows: slice | np.ndarray, columns: slice | np.ndarray) -> np.ndarray:
+    """``matrix[rows][:, columns]`` (a view when both are slices)."""
+    if isinstance(rows, slice) and isinstance(columns, slice):
+        return matrix[rows, columns]
+    return matrix[np.ix_(np.arange(matrix.shape[0])[rows], np.arange(matrix.shape[1])[columns])]
+
+
 def _clip(values: np.ndarray, limits: np.ndarray) -> np.ndarray:
     """``values`` clipped in place to ``limits[:, 0]`` .. ``limits[:, 1]``."""
     np.maximum(values, limits[:, 0], out=values)
@@ -116,14 +127,13 @@ class WholeBodyQP:
         self.torso = model.body(names.TORSO_BODY).id
         base_dof = int(model.jnt_dofadr[model.body_jntadr[self.pelvis]])
         self.base_dofs = np.arange(base_dof, base_dof + 6)
-        # z = [f, qacc_m]; qacc in the order [E, m] with E = base + servo dofs (eliminated).
+        # z = [f, qacc_m]; E = base + servo dofs, whose accelerations are eliminated.
         eliminated = np.concatenate([self.base_dofs, self.servo_dofs])
-        self._perm = np.concatenate([eliminated, self.motor_dofs])
-        if sorted(self._perm.tolist()) != list(range(nv)):
+        if sorted(np.concatenate([eliminated, self.motor_dofs]).tolist()) != list(range(nv)):
             raise ValueError("the floating base, motor and servo joints must cover every dof exactly once")
         ne, nm = len(eliminated), len(self.motor_dofs)
         self.ne, self.nm, self.nz = ne, nm, nf + nm
-        self._perm_flat = (self._perm[:, None] * nv + self._perm[None, :]).ravel()  # M[perm][:, perm]
+        self._base_index = as_index(self.base_dofs)
 
         knees = [j for j in names.LEFT_LEG_JOINTS + names.RIGHT_LEG_JOINTS if j.endswith("_knee_joint")]
         self.knee_qpos = np.array([model.joint(j).qposadr[0] for j in knees])
@@ -156,7 +166,7 @@ class WholeBodyQP:
         self._error_local = np.zeros(3)
         self._yaw_quat = np.zeros(4)
         self._site_quat = np.zeros(4)
-        self._mass_e_flat = (eliminated[:, None] * nv + self._perm[None, :]).ravel()  # M[E][:, perm]
+        self._mass_ee_flat = (eliminated[:, None] * nv + eliminated[None, :]).ravel()  # M[E][:, E], flattened
         # Index views (slices where the indices are consecutive, as they are on the G1).
         self._motor_dof_index = as_index(self.motor_dofs)
         self._motor_qpos_index = as_index(self.motor_qpos)
@@ -171,8 +181,13 @@ class WholeBodyQP:
         # Elimination: [K_f | K_m | k0] = M_EE^-1 [J_c,E^T | -M_Em | tau_E - h_E]; qacc = Q z + q0.
         self._elim_rhs = np.zeros((ne, self.nz + 1), order="F")  # LAPACK solves it in place
         self._mass_ee = np.zeros((ne, ne), order="F")
+        # Q (nv, nz) and q0 (nv) in MuJoCo's dof order: the motor rows of Q select qacc_m.
         self._q_map = np.zeros((nv, self.nz))
-        self._q_map[ne:, nf:] = np.eye(nm)
+        self._q_map[self.motor_dofs, nf + np.arange(nm)] = 1.0
+        self._q_offset = np.zeros(nv)
+        n_base = len(self.base_dofs)
+        self._base_rows = slice(0, n_base)  # rows of K (and of the elimination) that belong to the base
+        self._servo_rows = slice(n_base, ne)
 
         # Cost rows on z: CoM (total force / mass), tasks, posture (qacc_m), regularisation of qacc_E.
         n_cost = 3 + 18 + nm + ne
@@ -319,35 +334,38 @@ class WholeBodyQP:
         self._kinematics(model, data)
         mass = self._mass_matrix
         bias = np.subtract(data.qfrc_bias, data.qfrc_passive, out=self._bias)
-        bias_perm = bias[self._perm]
-        contact_jac = self._contact_jac.take(self._perm, axis=1)  # (nf, nv), columns [E, m]
+        contact_jac = self._contact_jac
         self._fill_tasks(data, targets)
-        self._motor_mass[:] = mass[self._motor_dof_index]
+        motor, base, servo = self._motor_dof_index, self._base_index, self._servo_dof_index
+        self._motor_mass[:] = mass[motor]
 
-        # Eliminate the equality rows: qacc_E = K z + k0.
-        mass_e = mass.take(self._mass_e_flat).reshape(ne, self.nv)  # rows E, columns [E, m]
-        elim = self._elim_rhs
-        elim[:, :nf] = contact_jac[:, :ne].T
-        np.negative(mass_e[:, ne:], out=elim[:, nf:nz])
-        np.negative(bias_perm[:6], out=elim[:6, nz])
-        np.subtract(self._servo_torques(data), bias_perm[6:ne], out=elim[6:, nz])
-        self._mass_ee[:] = mass_e[:, :ne]
+        # Eliminate the equality rows: qacc_E = K z + k0, rows of K ordered base then servo.
+        elim, base_rows, servo_rows = self._elim_rhs, self._base_rows, self._servo_rows
+        elim[base_rows, :nf] = contact_jac[:, base].T
+        elim[servo_rows, :nf] = contact_jac[:, servo].T
+        np.negative(_block(mass, base, motor), out=elim[base_rows, nf:nz])
+        np.negative(_block(mass, servo, motor), out=elim[servo_rows, nf:nz])
+        np.negative(bias[base], out=elim[base_rows, nz])
+        np.subtract(self._servo_torques(data), bias[servo], out=elim[servo_rows, nz])
+        self._mass_ee[:] = mass.take(self._mass_ee_flat).reshape(ne, ne)
         _, solved, info = lapack.dposv(self._mass_ee, elim, overwrite_a=1, overwrite_b=1)
         if info != 0:  # M_EE not positive definite: only with a broken state (e.g. NaN)
-            return self._fallback(FACTORISATION_FAILED, bias_perm, contact_jac)
-        q_map = self._q_map
-        q_map[:ne] = solved[:, :nz]
-        q_offset = solved[:, nz]
+            return self._fallback(FACTORISATION_FAILED, bias)
+        q_map, q_offset = self._q_map, self._q_offset
+        q_map[base] = solved[base_rows, :nz]
+        q_map[servo] = solved[servo_rows, :nz]
+        q_offset[base] = solved[base_rows, nz]
+        q_offset[servo] = solved[servo_rows, nz]
 
-        # Task and torque rows on z: [J_task; M_m] qacc = [J_task; M_m]_perm (Q z + q0).
-        rows_perm = self._rows[18:].take(self._perm, axis=1)
-        mapped = np.matmul(rows_perm, q_map, out=self._mapped)
-        offset = np.matmul(rows_perm[:, :ne], q_offset, out=self._mapped_offset)
+        # Task and torque rows on z: [J_task; M_m] qacc = [J_task; M_m] (Q z + q0).
+        task_and_motor = self._rows[18:]
+        mapped = np.matmul(task_and_motor, q_map, out=self._mapped)
+        offset = np.matmul(task_and_motor, q_offset, out=self._mapped_offset)
 
         # Costs: H = C^T W C + diag, g = -C^T W r.
         rows, rhs = self._cost_rows, self._cost_rhs
         rows[3:21] = mapped[:18]
-        rows[21 + self.nm :] = solved[:, :nz]
+        rows[21 + self.nm :] = solved[:, :nz]  # the eliminated accelerations' regularisation
         rhs[:3] = targets.com_acceleration
         rhs[2] += GRAVITY
         np.subtract(self._task_rhs, offset[:18], out=rhs[3:21])
@@ -355,7 +373,7 @@ class WholeBodyQP:
         np.subtract(targets.posture, data.qpos[self._motor_qpos_index], out=posture)
         posture *= POSTURE_KP
         posture -= POSTURE_KD * qvel[self._motor_dof_index]
-        np.negative(q_offset, out=rhs[21 + self.nm :])
+        np.negative(solved[:, nz], out=rhs[21 + self.nm :])
         weighted = np.multiply(rows.T, self._cost_weight, out=self._weighted)
         hessian = np.matmul(weighted, rows, out=self._hessian)
         self._hessian_diagonal += self._hessian_diag
@@ -364,9 +382,9 @@ class WholeBodyQP:
 
         # Torque rows: tau_m = M_m qacc + h_m - J_c,m^T f = T z + t0.
         torque_rows = self._torque_rows
-        np.subtract(mapped[18:, :nf], contact_jac[:, ne:].T, out=torque_rows[:, :nf])
+        np.subtract(mapped[18:, :nf], contact_jac[:, motor].T, out=torque_rows[:, :nf])
         torque_rows[:, nf:] = mapped[18:, nf:]
-        torque_offset = np.add(offset[18:], bias_perm[ne:], out=self._torque_offset)
+        torque_offset = np.add(offset[18:], bias[motor], out=self._torque_offset)
 
         upper, lower = self._upper, self._lower
         left, right = targets.load
@@ -390,22 +408,22 @@ class WholeBodyQP:
             self.relaxed_count += 1
         self.last_status = status
         if status < 1 or not math.isfinite(float(z @ z)):
-            return self._fallback(status, bias_perm, contact_jac)
+            return self._fallback(status, bias)
         self.last_force[:] = z[:nf]
         tau = torque_rows @ z
         tau += torque_offset
         return _clip(tau, self.torque_limit)
 
-    def _fallback(self, status: int, bias_perm: np.ndarray, contact_jac: np.ndarray) -> np.ndarray:
+    def _fallback(self, status: int, bias: np.ndarray) -> np.ndarray:
         """No solution this step: hold with the previous contact forces and zero joint accelerations [N m]."""
         self.last_status = status
         self.fallback_count += 1
         if self.fallback_count % 100 == 1:
             _log.warning("torque QP failed (status %d, %d times so far): reusing the previous contact forces",
                          status, self.fallback_count)
-        tau = bias_perm[self.ne :] - contact_jac[:, self.ne :].T @ self.last_force
+        motor = self._motor_dof_index
+        tau = bias[motor] - self._contact_jac[:, motor].T @ self.last_force
         return _clip(tau, self.torque_limit)
-
     def _solve_qp(self, hessian: np.ndarray, gradient: np.ndarray) -> tuple[np.ndarray, int]:
         """Solve the reduced QP, warm-started from the previous step's active set when there is one."""
         if self._qp_ready:

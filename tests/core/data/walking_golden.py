@@ -149,7 +149,15 @@ def record(robot: robot_models.RobotSpec) -> dict[str, np.ndarray]:
 
 def main() -> None:
     golden = record(robot_models.load("g1"))
-    np.savez_compressed(GOLDEN_FILE, **golden)
+    np.savez_compressed(
+        GOLDEN_FILE,
+        checkpoint_state=golden["checkpoint_state"],
+        checkpoint_command=golden["checkpoint_command"],
+        free_pose=golden["free_pose"],
+        free_final_qpos=golden["free_final_qpos"],
+        final_mode=golden["final_mode"],
+        steps_taken=golden["steps_taken"],
+    )
     print(f"wrote {GOLDEN_FILE} ({GOLDEN_FILE.stat().st_size / 1e3:.0f} kB): "
           f"{len(golden['checkpoint_state'])} checkpoints, {int(golden['steps_taken'])} steps, "
           f"final mode {golden['final_mode']}, final base {golden['free_pose'][-1].round(4)}")
