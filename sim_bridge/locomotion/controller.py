@@ -9,10 +9,13 @@ While walking, the leg and waist actuators are switched from position servos to 
 gains are restored when the robot stands still again, holding the pose it stopped in). The floating
 base is never written: the robot moves only through its feet pushing on the floor.
 
-Cost per control step: the plan is rebuilt from this step's measurements (its inputs, the measured
-stance sole and the rate-limited command, move every step), in float arithmetic on (x, y) tuples and
-one preallocated :class:`ZmpPreview`; its DCM is integrated once per step and serves both the
-tracking and the step adjustment. The QP is reduced and warm-started (see :mod:`.wbc`).
+Cost per control step: the ZMP preview is refilled from this step's measurements (the stance sole
+and the CoM move every step) in float arithmetic on (x, y) tuples, into one reused
+:class:`ZmpPreview` whose DCM is integrated once per step and serves both the tracking and the step
+adjustment. Only its first footstep is planned every step: the footsteps after it depend on nothing
+measured, so they are kept (``_plan``) until the command, the speed correction or that first
+footstep changes, which at a steady command means once per gait phase. The QP is reduced and
+warm-started (see :mod:`.wbc`).
 """
 
 from __future__ import annotations
@@ -69,6 +72,7 @@ HANDOVER_DELAY = 0.5  # time standing still before the hand-over [s]
 VELOCITY_FILTER_TIME = 0.5  # [s]
 
 Velocity = tuple[float, float, float]  # (vx [m/s], vy [m/s], wz [rad/s]) in the heading frame
+PlannedStep = tuple[Footstep, bool, Point, float]  # landing, closing step?, walking frame after it ([m], [rad])
 _ZERO: Velocity = (0.0, 0.0, 0.0)
 _CORNER_SIGNS = ((1, 1), (-1, 1), (-1, -1), (1, -1))  # counter-clockwise around the sole
 
@@ -295,6 +299,8 @@ class WalkingController:
         self._dt = 0.004
         self._last_tau = np.zeros(len(MOTOR_JOINTS))
         self._fall_message = ""
+        self._plan: list[PlannedStep] = []  # footsteps planned ahead (see _plan_from)
+        self._plan_key: tuple[object, ...] = ()
 
     def _crouch_com_height(self, model: mujoco.MjModel) -> float:
         data = mujoco.MjData(model)
@@ -505,9 +511,11 @@ class WalkingController:
     @staticmethod
     def _clip_reach(x: float, y: float, swing: Side, stance: Footstep) -> Point:
         """The nearest sole position to (x, y) within the swing leg's reach box around the stance sole [m]."""
-        forward, left = unrotate(stance.yaw, x - stance.x, y - stance.y)
-        forward = min(max(forward, REACH_X[0]), REACH_X[1])
+        relative_forward, left = unrotate(stance.yaw, x - stance.x, y - stance.y)
+        forward = min(max(relative_forward, REACH_X[0]), REACH_X[1])
         outward = min(max(swing.sign * left, REACH_LATERAL[0]), REACH_LATERAL[1])
+        if forward == relative_forward and outward == swing.sign * left:
+            return x, y  # within reach: the position itself (not its rotated round trip)
         dx, dy = rotate(stance.yaw, forward, swing.sign * outward)
         return stance.x + dx, stance.y + dy
 
@@ -516,12 +524,31 @@ class WalkingController:
         footstep, closing, _, _ = self._next_footstep_and_frame(frame_pos, frame_yaw, swing, stance)
         return footstep, closing
 
-    def _next_footstep_and_frame(
-        self, frame_pos: Point, frame_yaw: float, swing: Side, stance: Footstep
-    ) -> tuple[Footstep, bool, Point, float]:
+    def _next_footstep_and_frame(self, frame_pos: Point, frame_yaw: float, swing: Side, stance: Footstep) -> PlannedStep:
+        """The next landing of ``swing``, whether it closes the feet, and the walking frame after it."""
         velocity = _ZERO if self._stopping else self._velocity
         new_pos, new_yaw = self._advance_frame(frame_pos, frame_yaw, swing, velocity)
         return self._place(new_pos, new_yaw, swing, stance), velocity == _ZERO, new_pos, new_yaw
+
+    def _plan_from(self, first: PlannedStep) -> None:
+        """Start :attr:`_plan` at ``first``, keeping the steps already planned if nothing they depend on changed.
+
+        The footsteps after the first one of the preview depend only on it, the walking frame it
+        leaves and the filtered command, none of them measured; at a steady command the same steps
+        serve every control step of a gait phase instead of being planned again.
+        """
+        key = (first, self._stopping, self._velocity, self._speed_correction, self._params.step_period)
+        if key != self._plan_key:
+            self._plan_key = key
+            self._plan = [first]
+
+    def _planned_step(self, index: int) -> PlannedStep:
+        """The ``index``-th planned footstep (0 being the one given to :meth:`_plan_from`), planned on demand."""
+        plan = self._plan
+        while len(plan) <= index:
+            footstep, _, frame_pos, frame_yaw = plan[-1]
+            plan.append(self._next_footstep_and_frame(frame_pos, frame_yaw, footstep.side.other, footstep))
+        return plan[index]
 
     def _fill_preview(self, feet: tuple[Footstep, Footstep]) -> None:
         """Refill :attr:`_preview` with the ZMP reference from now to the horizon (or to standing)."""
@@ -572,12 +599,17 @@ class WalkingController:
             support = stance
             closing = False
         total = preview.total_duration - self._phase_time
+        count = 0
         while total < HORIZON:
             if self._stopping and closing:
                 break
-            footstep, closing, frame_pos, frame_yaw = self._next_footstep_and_frame(
-                frame_pos, frame_yaw, support.side.other, support
-            )
+            if count == 0:
+                step = self._next_footstep_and_frame(frame_pos, frame_yaw, support.side.other, support)
+                self._plan_from(step)
+            else:
+                step = self._planned_step(count)
+            footstep, closing, frame_pos, frame_yaw = step
+            count += 1
             landing = (footstep.x, footstep.y)
             preview.add(t_ds, (support.x, support.y), landing)
             preview.add(t_ss, landing, landing)
