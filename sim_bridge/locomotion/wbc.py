@@ -157,7 +157,19 @@ class WholeBodyQP:
         self._mass_matrix = np.zeros((nv, nv))
         self._bias = np.zeros(nv)
         self._contact_jac = np.zeros((nf, nv))
-        self._corner_jac = [self._contact_jac[3 * c : 3 * c + 3] for c in range(2 * CORNERS_PER_FOOT)]
+        # Corner Jacobians from the sole site's: J_corner = J_site - [r]x J_site_rot, r = corner - site
+        # (all on the foot body). ``_skew`` maps r (3,) to the flattened [r]x (9,).
+        self._corner_offsets = [self.corners_in_foot - model.site_pos[site] for site in self.sole_site]
+        for side in (0, 1):
+            if model.site_bodyid[self.sole_site[side]] != self.foot_body[side]:
+                raise ValueError("each sole site must be on its foot body")
+        self._skew = np.zeros((3, 9))
+        for axis, (row, column, sign) in enumerate(((2, 1, 1.0), (0, 2, 1.0), (1, 0, 1.0))):
+            self._skew[axis, 3 * row + column] = sign  # [r]x[row, column] = +r_axis
+            self._skew[axis, 3 * column + row] = -sign
+        self._foot_contact_jac = [
+            self._contact_jac[12 * side : 12 * side + 12].reshape(CORNERS_PER_FOOT, 3, nv) for side in (0, 1)
+        ]
         self._rows = np.zeros((36 + nm, nv))
         self._task_jac_dot = self._rows[:18]
         self._task_jac = self._rows[18:36]
@@ -260,13 +272,9 @@ class WholeBodyQP:
         self._yaw_quat[3] = math.sin(half)
 
     def _kinematics(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
-        """The MuJoCo quantities of this step: M (nv, nv), the sole-corner Jacobians (nf, nv), the task
-        Jacobians (18, nv) and their time derivatives, all in MuJoCo's dof order."""
+        """The MuJoCo quantities of this step: M (nv, nv), the task Jacobians (18, nv) and their time
+        derivatives, and from the soles' Jacobians the sole-corner Jacobians (nf, nv), in MuJoCo's dof order."""
         mujoco.mj_fullM(model, data, self._mass_matrix)
-        for side in (0, 1):
-            body = self.foot_body[side]
-            for c, corner in enumerate(self.corners(data, side)):
-                mujoco.mj_jac(model, data, self._corner_jac[4 * side + c], None, corner, body)
         jac, jac_dot = self._task_jac, self._task_jac_dot
         for row, body in ((0, self.pelvis), (3, self.torso)):
             mujoco.mj_jacBody(model, data, None, jac[row : row + 3], body)
@@ -276,6 +284,11 @@ class WholeBodyQP:
             site, body = self.sole_site[side], self.foot_body[side]
             mujoco.mj_jacSite(model, data, jac[row : row + 3], jac[row + 3 : row + 6], site)
             mujoco.mj_jacDot(model, data, jac_dot[row : row + 3], jac_dot[row + 3 : row + 6], data.site_xpos[site], body)
+        for side in (0, 1):
+            row = 6 + 6 * side
+            offsets = self._corner_offsets[side] @ data.xmat[self.foot_body[side]].reshape(3, 3).T  # (4, 3) [m]
+            cross = (offsets @ self._skew).reshape(CORNERS_PER_FOOT, 3, 3) @ jac[row + 3 : row + 6]
+            np.subtract(jac[row : row + 3], cross, out=self._foot_contact_jac[side])
 
     def _fill_tasks(self, data: mujoco.MjData, targets: WbcTargets) -> None:
         """Task weights and right-hand sides [m/s^2, rad/s^2] from the Jacobians of :meth:`_kinematics`."""
