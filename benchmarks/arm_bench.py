@@ -126,7 +126,8 @@ def bench_pick_place(count: int, rng: np.random.Generator) -> np.ndarray:
     sim.set_controller(Slot.ARM, skill)
     others = [np.array(names.BOX_HOME_POSITIONS[0]), np.array(names.BOX_HOME_POSITIONS[2])]
     box_adr = int(robot.model.joint("box_1").qposadr[0])
-    successes, errors, failures, lifts = 0, [], {}, []
+    successes, errors, lifts = 0, [], []
+    failures: dict[str, int] = {}
     wall_start, sim_total = time.perf_counter(), 0.0
     for _ in range(count):
         sim.reset()

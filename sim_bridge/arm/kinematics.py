@@ -267,7 +267,7 @@ class IKProblem:
         velocity_limited: the joint velocity limit of tracking, or the step limit of offline solves.
 
     Raises:
-        InvalidGoalError: an arm joint that is not a hinge or slide joint.
+        SimError: an arm joint that is not a hinge or slide joint.
     """
 
     def __init__(
@@ -417,7 +417,7 @@ class _ReducedQP:
         info = problem.info
         for joint_id in joint_ids:
             if int(model.jnt_type[joint_id]) not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
-                raise InvalidGoalError(f"arm joint {model.joint(joint_id).name!r} is not a hinge or slide joint")
+                raise SimError(f"arm joint {model.joint(joint_id).name!r} is not a hinge or slide joint")
         self.model = model
         self.data = problem.configuration.data
         self.configuration = problem.configuration
@@ -630,6 +630,9 @@ def workspace_reason(info: ArmInfo, shoulder_world: np.ndarray, target: Pose, ta
 
 class ArmKinematics:
     """The IK model of a robot and an IK problem pair (tracking, offline) per arm.
+
+    Building it compiles the robot's spec once more when its obstacles are visual meshes (the G1:
+    about 0.5 s, for their convex hulls; see :func:`build_collision_model`).
 
     Args:
         robot: the robot scene.
