@@ -176,6 +176,8 @@ class WholeBodyQP:
         self._motor_mass = self._rows[36:]
         self._task_rhs = np.zeros(18)
         self._error_local = np.zeros(3)
+        self._upper_body_error = np.zeros((2, 3, 1))  # local rotation errors of the pelvis and torso [rad]
+        self._upper_bodies = np.array([self.pelvis, self.torso])
         self._yaw_quat = np.zeros(4)
         self._site_quat = np.zeros(4)
         self._mass_ee_flat = (eliminated[:, None] * nv + eliminated[None, :]).ravel()  # M[E][:, E], flattened
@@ -258,14 +260,6 @@ class WholeBodyQP:
         body = self.foot_body[side]
         return data.xpos[body] + self.corners_in_foot @ data.xmat[body].reshape(3, 3).T
 
-    def _orientation_target(self, data: mujoco.MjData, row: int, body: int, velocity: np.ndarray) -> None:
-        """Rotation task rhs [rad/s^2] of ``body``: PD toward the yaw in ``self._yaw_quat`` (world frame)."""
-        mujoco.mju_subQuat(self._error_local, self._yaw_quat, data.xquat[body])
-        rhs = self._task_rhs[row : row + 3]
-        np.matmul(data.xmat[body].reshape(3, 3), self._error_local, out=rhs)
-        rhs *= ORIENTATION_KP
-        rhs -= ORIENTATION_KD * velocity[row : row + 3]
-
     def _set_yaw_quat(self, yaw: float) -> None:
         half = 0.5 * yaw
         self._yaw_quat[0] = math.cos(half)
@@ -295,9 +289,15 @@ class WholeBodyQP:
         drift_velocity = self._rows[:36] @ data.qvel
         velocity = drift_velocity[18:]
         rhs = self._task_rhs
+        # Pelvis and torso: PD toward the heading (rotation errors in world = R_body @ local error).
         self._set_yaw_quat(targets.heading)
-        for row, body in ((0, self.pelvis), (3, self.torso)):
-            self._orientation_target(data, row, body, velocity)
+        errors = self._upper_body_error
+        mujoco.mju_subQuat(errors[0, :, 0], self._yaw_quat, data.xquat[self.pelvis])
+        mujoco.mju_subQuat(errors[1, :, 0], self._yaw_quat, data.xquat[self.torso])
+        orientation = rhs[:6].reshape(2, 3, 1)
+        np.matmul(data.xmat[self._upper_bodies].reshape(2, 3, 3), errors, out=orientation)
+        rhs[:6] *= ORIENTATION_KP
+        rhs[:6] -= ORIENTATION_KD * velocity[:6]
         weight = self._task_weight
         for side in (0, 1):
             row = 6 + 6 * side
