@@ -92,33 +92,43 @@ class CoreWalk:
     fell: bool
 
 
-def core_walk(robot: robot_models.RobotSpec, speed: float = 0.5, duration: float = 10.0, record: bool = True) -> CoreWalk:
-    """Walk at ``speed`` for ``duration`` seconds of sim time in one ``sim.step`` call, then time raw physics.
-
-    The raw physics figure replays every control tick of the walk from its recorded state (after the
-    controller wrote its torques) on a second MjData: ``mj_step`` over one control period, nothing else.
-    """
+def _start_walk(robot: robot_models.RobotSpec, speed: float, record: bool) -> tuple[Simulation, _TimedController]:
     sim = Simulation(robot)
     controller = WalkingController(sim.model)
     timed = _TimedController(controller, record_states=record)
     sim.set_controller(Slot.LOCOMOTION, timed)
     controller.set_velocity_command(speed, 0.0, 0.0)
+    return sim, timed
+
+
+def core_walk(robot: robot_models.RobotSpec, speed: float = 0.5, duration: float = 10.0, physics: bool = True) -> CoreWalk:
+    """Walk at ``speed`` for ``duration`` seconds of sim time in one ``sim.step`` call, then time raw physics.
+
+    The raw physics figure: the same (deterministic) walk is run again recording the state after every
+    control tick's controller, and each tick is replayed from it on a second MjData, ``mj_step`` over
+    one control period and nothing else. The timed walk itself records nothing.
+    """
+    sim, timed = _start_walk(robot, speed, record=False)
     ticks = round(duration / sim.control_timestep)
-    if record:
-        timed.reserve(sim.model, ticks)
     wall_start, cpu_start = time.perf_counter(), time.process_time()
     sim.step(ticks)
     wall, cpu = time.perf_counter() - wall_start, time.process_time() - cpu_start
-    fell = controller.status().fallen
-    replay = mujoco.MjData(sim.model)  # the model still has the legs in torque mode, as during the walk
-    physics = np.zeros(timed.recorded)
-    for k, state in enumerate(timed.states[: timed.recorded]):
-        mujoco.mj_setState(sim.model, replay, state, _PHYSICS_STATE)
-        start = time.perf_counter()
-        mujoco.mj_step(sim.model, replay, nstep=sim.decimation)
-        physics[k] = time.perf_counter() - start
+    fell = timed.inner.status().fallen
     sim.reset()
-    return CoreWalk(duration, wall, cpu, np.array(timed.times), physics, fell)
+    physics_times = np.zeros(0)
+    if physics:
+        sim, recorder = _start_walk(robot, speed, record=True)
+        recorder.reserve(sim.model, ticks)
+        sim.step(ticks)
+        replay = mujoco.MjData(sim.model)  # the model still has the legs in torque mode, as during the walk
+        physics_times = np.zeros(recorder.recorded)
+        for k, state in enumerate(recorder.states[: recorder.recorded]):
+            mujoco.mj_setState(sim.model, replay, state, _PHYSICS_STATE)
+            start = time.perf_counter()
+            mujoco.mj_step(sim.model, replay, nstep=sim.decimation)
+            physics_times[k] = time.perf_counter() - start
+        sim.reset()
+    return CoreWalk(duration, wall, cpu, np.array(timed.times), physics_times, fell)
 
 
 def walk(
@@ -255,7 +265,7 @@ def main() -> None:
           f"(below ~0.95: other processes took the core; CPU/sim {core.cpu_time / core.sim_time:.3f})")
     if args.profile:
         with PartTimer() as parts:
-            profiled = core_walk(robot, record=False)
+            profiled = core_walk(robot, physics=False)
         parts.print(len(profiled.controller_times), profiled.wall_time)
     if args.core_only:
         return
