@@ -100,6 +100,20 @@ def _clip(values: np.ndarray, limits: np.ndarray) -> np.ndarray:
     return np.minimum(values, limits[:, 1], out=values)
 
 
+class _Support:
+    """The QP of one support (both feet, or one foot): which z columns, constraint rows and bounds it
+    keeps (flat indices into the full arrays; None for the full problem) and its DAQP model."""
+
+    def __init__(self, keep: np.ndarray | None, hessian_index: np.ndarray | None,
+                 constraint_index: np.ndarray | None, bound_index: np.ndarray | None) -> None:
+        self.keep = keep
+        self.hessian_index = hessian_index
+        self.constraint_index = constraint_index
+        self.bound_index = bound_index
+        self.model = daqp.Model()
+        self.ready = False
+
+
 class WholeBodyQP:
     """Builds and solves the torque QP on the current state of a MuJoCo model.
 
@@ -240,8 +254,23 @@ class WholeBodyQP:
         self._normal_index = (slice(2, half, 3), slice(half + 2, nf, 3))  # f_z of the left, right corners
         self._lower[2:nf:3] = 0.0
         self._corner_max = 1.5 * self.mass * GRAVITY
-        self._qp = daqp.Model()
-        self._qp_ready = False
+        # One warm-started DAQP model per support: both feet, left only, right only. A foot with no
+        # load has zero forces (normal bound 0, hence tangential 0 through its pyramid), so in single
+        # support the QP drops its 12 forces and 16 pyramid rows: the same optimum, a smaller problem.
+        force_columns = (np.arange(0, half), np.arange(half, nf))
+        pyramid_rows = (np.arange(0, n_friction // 2), np.arange(n_friction // 2, n_friction))
+        torque_rows = np.arange(n_friction, n_friction + nm)
+        motor_columns = np.arange(nf, self.nz)
+        self._supports = [_Support(None, None, None, None)]
+        for side in (0, 1):
+            keep = np.concatenate([force_columns[side], motor_columns])
+            rows = np.concatenate([pyramid_rows[side], torque_rows])
+            self._supports.append(_Support(
+                keep,
+                (keep[:, None] * self.nz + keep[None, :]).ravel(),
+                (rows[:, None] * self.nz + keep[None, :]).ravel(),
+                np.concatenate([keep, self.nz + rows]),
+            ))
 
         self.last_force = np.zeros(FORCE_BLOCK)
         self.last_status = 1
@@ -252,7 +281,8 @@ class WholeBodyQP:
         """Forget the previous step's forces and active set (call when the state jumps, e.g. on reset)."""
         self.last_force[:] = 0.0
         self.last_status = 1
-        self._qp_ready = False
+        for support in self._supports:
+            support.ready = False
 
     # ----- kinematics -------------------------------------------------------------------
     def corners(self, data: mujoco.MjData, side: int) -> np.ndarray:
@@ -411,7 +441,7 @@ class WholeBodyQP:
         np.subtract(self.torque_limit[:, 1], torque_offset, out=upper[-n_torque:])
         np.subtract(self.torque_limit[:, 0], torque_offset, out=lower[-n_torque:])
 
-        z, status = self._solve_qp(hessian, gradient)
+        z, status = self._solve_qp(hessian, gradient, 2 if left <= 0.0 else 1 if right <= 0.0 else 0)
         if status < 1:
             # Without the torque and knee limits (as if those rows were absent).
             lower[self._knee_z] = -UNBOUNDED
@@ -437,15 +467,33 @@ class WholeBodyQP:
         motor = self._motor_dof_index
         tau = bias[motor] - self._contact_jac[:, motor].T @ self.last_force
         return _clip(tau, self.torque_limit)
-    def _solve_qp(self, hessian: np.ndarray, gradient: np.ndarray) -> tuple[np.ndarray, int]:
-        """Solve the reduced QP, warm-started from the previous step's active set when there is one."""
-        if self._qp_ready:
-            self._qp.update(H=hessian, f=gradient, A=self._constraints, bupper=self._upper, blower=self._lower)
+    def _solve_qp(self, hessian: np.ndarray, gradient: np.ndarray, support_index: int) -> tuple[np.ndarray, int]:
+        """Solve the QP (for support 0 both feet, 1 left only, 2 right only), warm-started from that
+        support's previous active set when there is one; returns z in full (nz,) and DAQP's status."""
+        support = self._supports[support_index]
+        if support.keep is None:
+            problem = (hessian, gradient, self._constraints, self._upper, self._lower)
         else:
-            self._qp.setup(hessian, gradient, self._constraints, self._upper, self._lower)
-            self._qp_ready = True
-        z, _, status, _ = self._qp.solve()
+            n = len(support.keep)
+            problem = (
+                hessian.take(support.hessian_index).reshape(n, n),
+                gradient.take(support.keep),
+                self._constraints.take(support.constraint_index).reshape(-1, n),
+                self._upper.take(support.bound_index),
+                self._lower.take(support.bound_index),
+            )
+        if support.ready:
+            h, f, a, upper, lower = problem
+            support.model.update(H=h, f=f, A=a, bupper=upper, blower=lower)
+        else:
+            support.model.setup(*problem)
+            support.ready = True
+        solution, _, status, _ = support.model.solve()
         status = int(status)
         if status < 1:
-            self._qp_ready = False  # start the next step from scratch
-        return np.asarray(z), status
+            support.ready = False  # start the next step from scratch
+        if support.keep is None:
+            return np.asarray(solution), status
+        z = np.zeros(self.nz)
+        z[support.keep] = solution
+        return z, status
