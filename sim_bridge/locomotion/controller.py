@@ -12,10 +12,10 @@ base is never written: the robot moves only through its feet pushing on the floo
 Cost per control step: the ZMP preview is refilled from this step's measurements (the stance sole
 and the CoM move every step) in float arithmetic on (x, y) tuples, into one reused
 :class:`ZmpPreview` whose DCM is integrated once per step and serves both the tracking and the step
-adjustment. Only its first footstep is planned every step: the footsteps after it depend on nothing
-measured, so they are kept (``_plan``) until the command, the speed correction or that first
-footstep changes, which at a steady command means once per gait phase. The QP is reduced and
-warm-started (see :mod:`.wbc`).
+adjustment. Footsteps that follow a planned footstep depend on nothing measured, so they are
+kept (``_plan``) until the command, the speed correction or the footstep they follow changes, which
+at a steady command means once per gait phase; only a footstep placed from the measured stance sole
+is planned every step. The QP is reduced and warm-started (see :mod:`.wbc`).
 """
 
 from __future__ import annotations
@@ -299,7 +299,8 @@ class WalkingController:
         self._dt = 0.004
         self._last_tau = np.zeros(len(MOTOR_JOINTS))
         self._fall_message = ""
-        self._plan: list[PlannedStep] = []  # footsteps planned ahead (see _plan_from)
+        self._plan: list[PlannedStep] = []  # footsteps planned ahead (see _plan_after)
+        self._plan_base: PlannedStep = (self._swing_target, False, (0.0, 0.0), 0.0)
         self._plan_key: tuple[object, ...] = ()
 
     def _crouch_com_height(self, model: mujoco.MjModel) -> float:
@@ -530,23 +531,25 @@ class WalkingController:
         new_pos, new_yaw = self._advance_frame(frame_pos, frame_yaw, swing, velocity)
         return self._place(new_pos, new_yaw, swing, stance), velocity == _ZERO, new_pos, new_yaw
 
-    def _plan_from(self, first: PlannedStep) -> None:
-        """Start :attr:`_plan` at ``first``, keeping the steps already planned if nothing they depend on changed.
+    def _plan_after(self, frame_pos: Point, frame_yaw: float, support: Footstep) -> None:
+        """Plan (on demand, :meth:`_planned_step`) the footsteps after the planned ``support``.
 
-        The footsteps after the first one of the preview depend only on it, the walking frame it
-        leaves and the filtered command, none of them measured; at a steady command the same steps
-        serve every control step of a gait phase instead of being planned again.
+        They depend only on that footstep, the walking frame it leaves and the filtered command,
+        none of them measured: the steps already planned are kept while these are unchanged, which
+        at a steady command means for a whole gait phase.
         """
-        key = (first, self._stopping, self._velocity, self._speed_correction, self._params.step_period)
+        key = (frame_pos, frame_yaw, support, self._stopping, self._velocity, self._speed_correction,
+               self._params.step_period)
         if key != self._plan_key:
             self._plan_key = key
-            self._plan = [first]
+            self._plan_base = (support, False, frame_pos, frame_yaw)
+            self._plan = []
 
     def _planned_step(self, index: int) -> PlannedStep:
-        """The ``index``-th planned footstep (0 being the one given to :meth:`_plan_from`), planned on demand."""
+        """The ``index``-th footstep after the support given to :meth:`_plan_after`, planned on demand."""
         plan = self._plan
         while len(plan) <= index:
-            footstep, _, frame_pos, frame_yaw = plan[-1]
+            footstep, _, frame_pos, frame_yaw = plan[-1] if plan else self._plan_base
             plan.append(self._next_footstep_and_frame(frame_pos, frame_yaw, footstep.side.other, footstep))
         return plan[index]
 
@@ -570,6 +573,7 @@ class WalkingController:
         if phase is _Phase.SHIFT:
             preview.add(self._phase_duration, self._zmp_start, here)
             preview.add(t_ss, here, here)
+            planned = self._phase_duration + t_ss  # the pieces' total duration so far [s]
             frame_pos, frame_yaw = self._frame_pos, self._frame_yaw
             support = stance
             closing = False
@@ -584,6 +588,7 @@ class WalkingController:
                 preview.add(1.0, mid, mid)
                 return
             preview.add(t_ss, landing, landing)
+            planned = self._phase_duration + t_ds + t_ss
             frame_pos, frame_yaw = _frame_of(target), target.yaw
             support = target
             closing = self._swing_closing
@@ -595,19 +600,25 @@ class WalkingController:
                 preview.add(1.0, mid, mid)
                 return
             preview.add(t_ss, here, here)
+            planned = self._phase_duration + t_ss
             frame_pos, frame_yaw = self._frame_pos, self._frame_yaw
             support = stance
             closing = False
-        total = preview.total_duration - self._phase_time
+        total = planned - self._phase_time
+        # The first footstep after a measured support (double support, shift) is planned every step;
+        # the ones after a planned footstep come from _plan.
+        measured = phase is not _Phase.SINGLE
         count = 0
         while total < HORIZON:
             if self._stopping and closing:
                 break
-            if count == 0:
+            if measured and count == 0:
                 step = self._next_footstep_and_frame(frame_pos, frame_yaw, support.side.other, support)
-                self._plan_from(step)
+                self._plan_after(step[2], step[3], step[0])
             else:
-                step = self._planned_step(count)
+                if count == 0:
+                    self._plan_after(frame_pos, frame_yaw, support)
+                step = self._planned_step(count - 1 if measured else count)
             footstep, closing, frame_pos, frame_yaw = step
             count += 1
             landing = (footstep.x, footstep.y)
