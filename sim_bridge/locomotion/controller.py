@@ -67,6 +67,7 @@ REACH_LATERAL = (0.15, 0.40)  # outward distance between sole centres [m]
 SUPPORT_MARGIN = 0.01  # the desired CoP stays this far inside the sole [m]
 FALL_HEIGHT = 0.45  # pelvis height below which the robot has fallen [m]
 FALL_TILT = math.radians(50.0)
+_FALL_UP_Z = math.cos(FALL_TILT)  # the pelvis z axis's world z below which the robot has fallen
 HANDOVER_SPEED = 0.03  # CoM speed below which standing is handed back to the position servos [m/s]
 HANDOVER_DELAY = 0.5  # time standing still before the hand-over [s]
 VELOCITY_FILTER_TIME = 0.5  # [s]
@@ -347,7 +348,7 @@ class WalkingController:
     def _has_fallen(self, data: mujoco.MjData) -> bool:
         height = data.qpos[self._base_qpos + 2]
         up_z = data.xmat[self._pelvis][8]
-        return bool(height < FALL_HEIGHT or up_z < math.cos(FALL_TILT))
+        return bool(height < FALL_HEIGHT or up_z < _FALL_UP_Z)
 
     def _feet(self, data: mujoco.MjData) -> tuple[Footstep, Footstep]:
         """The measured soles (left, right): centre (x, y) [m] and yaw [rad] in world."""

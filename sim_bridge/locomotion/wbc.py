@@ -13,8 +13,10 @@ accelerations they determine. With E the base and servo dofs and m the motor dof
     qacc_E = K_f f + K_m qacc_m + k0,   [K_f | K_m | k0] = M_EE^-1 [J_c,E^T | -M_Em | tau_E - h_E],
 
 so the QP is posed in z = [f, qacc_m] alone (24 + 15 variables, no equality rows) and every cost
-and constraint row is mapped through qacc = Q z + q0. It is solved with DAQP, warm-started from the
-previous control step's active set (the reduced problem has the same dimensions every step).
+and constraint row is mapped through qacc = Q z + q0. In single support the unloaded foot's forces
+are zero (normal bound 0, tangential pinned by its pyramid), so they and their pyramid rows are left
+out (27 variables, 31 rows). It is solved with DAQP, one model per support (both feet, left, right),
+each warm-started from its previous active set.
 (Posing it in z = [f, tau_m] instead, with qacc from ``mj_solveM``, would make the torque limits
 simple bounds, but that Hessian's condition number is ~1e14 and its optimum came out ~0.5 N m off.)
 M_EE^-1 is applied with LAPACK's Cholesky solver (``dposv``, from SciPy, which the QP stack already
@@ -124,8 +126,14 @@ class WholeBodyQP:
         motor_joints: joints driven by torque (legs, waist), in the order torques are returned.
         servo_joints: joints left on their position servos (arms); their torque is predicted, not chosen.
 
+    Attributes:
+        last_status: DAQP's exit flag of the last step (1 optimal; < 1 failed).
+        relaxed_count: steps solved without the torque and knee limits (infeasible with them).
+        fallback_count: steps where no QP solved and the previous contact forces were reused.
+
     Raises:
-        ValueError: the floating base, motor and servo joints do not partition the model's dofs.
+        ValueError: the floating base, motor and servo joints do not partition the model's dofs, or a
+            sole site is not on its foot body.
     """
 
     def __init__(self, model: mujoco.MjModel, motor_joints: tuple[str, ...], servo_joints: tuple[str, ...]) -> None:
