@@ -12,6 +12,8 @@ import robot_models
 from robot_models import g1_constants as names
 from sim_bridge import InvalidGoalError, Simulation, Slot
 from sim_bridge.locomotion import PARAMETER_RANGES, GaitParameters, LocomotionMode, WalkingController
+from sim_bridge.locomotion import wbc
+from sim_bridge.locomotion.controller import MOTOR_JOINTS
 from sim_bridge.locomotion.planner import Footstep, Side, ZmpSegment, clip_to_polygon, convex_hull, dcm_reference
 
 
@@ -249,3 +251,27 @@ def test_release_gives_the_legs_back_to_the_position_servos(walker):
     assert not controller.active
     assert sim.model.actuator_gainprm[knee, 0] == servo_gain
     assert controller.status().mode is LocomotionMode.STANDING
+
+
+def test_a_failed_torque_qp_is_counted_logged_and_holds_the_previous_contact_forces(walker, monkeypatch, caplog):
+    sim, controller = walker
+    controller.set_velocity_command(0.2, 0.0, 0.0)
+    _run(sim, controller, 0.2)  # balancing under the QP, in torque mode
+    qp = controller._wbc
+    forces = qp.last_force.copy()
+    assert np.any(forces != 0.0)
+
+    def fail(*args, **kwargs):
+        return np.zeros(qp.nz), 0.0, -1, {}
+
+    monkeypatch.setattr(qp, "_solve_qp", lambda hessian, gradient, support: (np.zeros(qp.nz), -1))
+    monkeypatch.setattr(wbc.daqp, "solve", fail)
+    with caplog.at_level("WARNING", logger=wbc.__name__):
+        sim.step(1)
+    assert (qp.relaxed_count, qp.fallback_count, controller.qp_fallback_count) == (1, 1, 1)
+    assert "torque QP failed" in caplog.text
+    np.testing.assert_array_equal(qp.last_force, forces)  # held, not replaced
+    motors = [sim.model.actuator(j).id for j in MOTOR_JOINTS]
+    torques = sim.data.ctrl[motors]
+    assert np.all(np.isfinite(torques))
+    assert np.all((qp.torque_limit[:, 0] <= torques) & (torques <= qp.torque_limit[:, 1]))
