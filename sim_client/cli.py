@@ -153,6 +153,14 @@ def _param(options: argparse.Namespace) -> int:
 
 
 def _watch(options: argparse.Namespace) -> int:
+    """Live view until Ctrl-C; a Ctrl-C that comes while it is still starting quits as quietly."""
+    try:
+        return _watch_view(options)
+    except KeyboardInterrupt:
+        return 0
+
+
+def _watch_view(options: argparse.Namespace) -> int:
     from action_msgs.msg import GoalStatus, GoalStatusArray
     from nav_msgs.msg import Odometry
     from rich.console import Console

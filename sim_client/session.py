@@ -10,6 +10,7 @@ from typing import Any, Generic, TypeVar
 import rclpy
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rclpy.context import Context
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -20,6 +21,13 @@ from rclpy.task import Future
 MsgT = TypeVar("MsgT")
 T = TypeVar("T")
 
+
+
+def quiet_events() -> SubscriptionEventCallbacks:
+    """No QoS event handlers on a subscription: rclpy's defaults only log QoS mismatch warnings, and
+    each is a Python waitable the executor rebuilds into its wait set on every wake-up (a recorder of
+    ~20 topics had ~40 of them, and each lock-step chunk waits behind those wake-ups)."""
+    return SubscriptionEventCallbacks(use_default_callbacks=False)
 
 class WaitTimeout(TimeoutError):
     """A condition did not hold before its deadline; the message says which."""
@@ -122,8 +130,19 @@ class RosSession:
                 raise WaitTimeout(f"timed out after {timeout:.1f} s waiting for {what}")
             event.wait(poll)
 
-    def wait_future(self, future: Future, timeout: float, what: str) -> Any:
-        self.wait_for(future.done, timeout, what)
+    @staticmethod
+    def wait_future(future: Future, timeout: float, what: str) -> Any:
+        """The result of ``future``, woken the moment it completes (no polling: a lock-stepped run
+        waits for one /sim/step response per chunk of sim time, and a 10 ms poll cost more wall time
+        than the physics of the chunk).
+
+        Raises:
+            WaitTimeout: not done within ``timeout`` wall seconds; the message names ``what``.
+        """
+        done = threading.Event()
+        future.add_done_callback(lambda _future: done.set())
+        if not done.wait(timeout) and not future.done():
+            raise WaitTimeout(f"timed out after {timeout:.1f} s waiting for {what}")
         return future.result()
 
     def in_executor(self, function: Callable[[], T], timeout: float = 10.0, what: str = "the executor") -> T:
@@ -136,13 +155,13 @@ class RosSession:
         inside an executor callback.
         """
         task = self._executor.create_task(function)
-        self.wait_for(task.done, timeout, f"{what} to run the request")
-        return task.result()
+        return self.wait_future(task, timeout, f"{what} to run the request")
 
     # ----- topics and services -----------------------------------------------------------
     def record(self, msg_type: type[MsgT], topic: str, qos: QoSProfile | int = 10, keep: int = 100_000) -> TopicRecorder[MsgT]:
         recorder: TopicRecorder[MsgT] = TopicRecorder(keep)
-        subscription = self.node.create_subscription(msg_type, topic, recorder._on_message, qos)
+        subscription = self.node.create_subscription(msg_type, topic, recorder._on_message, qos,
+                                                     event_callbacks=quiet_events())
         recorder._unsubscribe = lambda: self.node.destroy_subscription(subscription)
         return recorder
 

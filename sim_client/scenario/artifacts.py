@@ -151,6 +151,8 @@ class McapRecorder:
     def discover(self) -> None:
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
+        from sim_client.session import quiet_events
+
         node = self.session.node
         for topic, types in node.get_topic_names_and_types():
             if topic in self._channels or topic in self.skipped or topic in self._exclude or not types:
@@ -174,7 +176,8 @@ class McapRecorder:
                 self._channels[topic] = self._writer.register_channel(topic, "cdr", self._schemas[type_name])
                 self.counts[topic] = 0
             self._subscriptions.append(node.create_subscription(
-                msg_type, topic, lambda data, topic=topic: self._on_message(topic, data), qos, raw=True))
+                msg_type, topic, lambda data, topic=topic: self._on_message(topic, data), qos, raw=True,
+                event_callbacks=quiet_events()))
 
     def _on_message(self, topic: str, data: bytes) -> None:
         now = self.session.node.get_clock().now().nanoseconds
