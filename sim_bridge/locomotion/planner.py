@@ -256,23 +256,28 @@ def hull_of(points: list[Point]) -> list[Point]:
 
 def clip_point(x: float, y: float, hull: list[Point]) -> Point:
     """(x, y) itself if it is inside the counter-clockwise convex polygon, else the nearest boundary point."""
+    count = len(hull)
     inside = True
+    for i in range(count):
+        ax, ay = hull[i]
+        bx, by = hull[(i + 1) % count]
+        if (bx - ax) * (y - ay) - (by - ay) * (x - ax) < 0:
+            inside = False
+            break
+    if inside or count == 0:
+        return x, y
     best = (x, y)
     best_distance = math.inf
-    count = len(hull)
     for i in range(count):
         ax, ay = hull[i]
         bx, by = hull[(i + 1) % count]
         edge_x, edge_y = bx - ax, by - ay
-        px, py = x - ax, y - ay
-        if edge_x * py - edge_y * px < 0:
-            inside = False
-        t = min(max((px * edge_x + py * edge_y) / max(edge_x * edge_x + edge_y * edge_y, 1e-12), 0.0), 1.0)
+        t = min(max(((x - ax) * edge_x + (y - ay) * edge_y) / max(edge_x * edge_x + edge_y * edge_y, 1e-12), 0.0), 1.0)
         cx, cy = ax + t * edge_x, ay + t * edge_y
         distance = (x - cx) ** 2 + (y - cy) ** 2
         if distance < best_distance:
             best, best_distance = (cx, cy), distance
-    return (x, y) if inside or count == 0 else best
+    return best
 
 
 def convex_hull(points: np.ndarray) -> np.ndarray:

@@ -181,7 +181,8 @@ class WholeBodyQP:
         self._contact_jac = np.zeros((nf, nv))
         # Corner Jacobians from the sole site's: J_corner = J_site - [r]x J_site_rot, r = corner - site
         # (all on the foot body). ``_skew`` maps r (3,) to the flattened [r]x (9,).
-        self._corner_offsets = [self.corners_in_foot - model.site_pos[site] for site in self.sole_site]
+        self._corner_offsets = np.array([self.corners_in_foot - model.site_pos[site] for site in self.sole_site])
+        self._feet = np.array(self.foot_body)
         for side in (0, 1):
             if model.site_bodyid[self.sole_site[side]] != self.foot_body[side]:
                 raise ValueError("each sole site must be on its foot body")
@@ -189,9 +190,7 @@ class WholeBodyQP:
         for axis, (row, column, sign) in enumerate(((2, 1, 1.0), (0, 2, 1.0), (1, 0, 1.0))):
             self._skew[axis, 3 * row + column] = sign  # [r]x[row, column] = +r_axis
             self._skew[axis, 3 * column + row] = -sign
-        self._foot_contact_jac = [
-            self._contact_jac[12 * side : 12 * side + 12].reshape(CORNERS_PER_FOOT, 3, nv) for side in (0, 1)
-        ]
+        self._corner_jac = self._contact_jac.reshape(2, CORNERS_PER_FOOT, 3, nv)  # [foot, corner, axis, dof]
         self._rows = np.zeros((36 + nm, nv))
         self._task_jac_dot = self._rows[:18]
         self._task_jac = self._rows[18:36]
@@ -316,11 +315,11 @@ class WholeBodyQP:
             site, body = self.sole_site[side], self.foot_body[side]
             mujoco.mj_jacSite(model, data, jac[row : row + 3], jac[row + 3 : row + 6], site)
             mujoco.mj_jacDot(model, data, jac_dot[row : row + 3], jac_dot[row + 3 : row + 6], data.site_xpos[site], body)
-        for side in (0, 1):
-            row = 6 + 6 * side
-            offsets = self._corner_offsets[side] @ data.xmat[self.foot_body[side]].reshape(3, 3).T  # (4, 3) [m]
-            cross = (offsets @ self._skew).reshape(CORNERS_PER_FOOT, 3, 3) @ jac[row + 3 : row + 6]
-            np.subtract(jac[row : row + 3], cross, out=self._foot_contact_jac[side])
+        sole_jac = jac[6:18].reshape(2, 2, 3, -1)  # [foot, linear/angular, axis, dof]
+        rotation = data.xmat[self._feet].reshape(2, 3, 3)
+        offsets = self._corner_offsets @ rotation.transpose(0, 2, 1)  # corners - sole centre, world (2, 4, 3) [m]
+        cross = (offsets @ self._skew).reshape(2, CORNERS_PER_FOOT, 3, 3) @ sole_jac[:, None, 1]
+        np.subtract(sole_jac[:, None, 0], cross, out=self._corner_jac)
 
     def _fill_tasks(self, data: mujoco.MjData, targets: WbcTargets) -> None:
         """Task weights and right-hand sides [m/s^2, rad/s^2] from the Jacobians of :meth:`_kinematics`."""
