@@ -104,10 +104,11 @@ def _clip(values: np.ndarray, limits: np.ndarray) -> np.ndarray:
 
 class _Support:
     """The QP of one support (both feet, or one foot): which z columns, constraint rows and bounds it
-    keeps (flat indices into the full arrays; None for the full problem) and its DAQP model."""
+    keeps (flat indices into the full arrays; ``full`` when it keeps everything) and its DAQP model."""
 
-    def __init__(self, keep: np.ndarray | None, hessian_index: np.ndarray | None,
-                 constraint_index: np.ndarray | None, bound_index: np.ndarray | None) -> None:
+    def __init__(self, keep: np.ndarray, hessian_index: np.ndarray, constraint_index: np.ndarray,
+                 bound_index: np.ndarray, full: bool = False) -> None:
+        self.full = full
         self.keep = keep
         self.hessian_index = hessian_index
         self.constraint_index = constraint_index
@@ -268,7 +269,8 @@ class WholeBodyQP:
         pyramid_rows = (np.arange(0, n_friction // 2), np.arange(n_friction // 2, n_friction))
         torque_rows = np.arange(n_friction, n_friction + nm)
         motor_columns = np.arange(nf, self.nz)
-        self._supports = [_Support(None, None, None, None)]
+        nothing = np.zeros(0, dtype=int)
+        self._supports = [_Support(nothing, nothing, nothing, nothing, full=True)]
         for side in (0, 1):
             keep = np.concatenate([force_columns[side], motor_columns])
             rows = np.concatenate([pyramid_rows[side], torque_rows])
@@ -478,7 +480,7 @@ class WholeBodyQP:
         """Solve the QP (for support 0 both feet, 1 left only, 2 right only), warm-started from that
         support's previous active set when there is one; returns z in full (nz,) and DAQP's status."""
         support = self._supports[support_index]
-        if support.keep is None:
+        if support.full:
             problem = (hessian, gradient, self._constraints, self._upper, self._lower)
         else:
             n = len(support.keep)
@@ -499,7 +501,7 @@ class WholeBodyQP:
         status = int(status)
         if status < 1:
             support.ready = False  # start the next step from scratch
-        if support.keep is None:
+        if support.full:
             return np.asarray(solution), status
         z = np.zeros(self.nz)
         z[support.keep] = solution
