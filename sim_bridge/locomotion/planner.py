@@ -191,8 +191,7 @@ def dcm_reference(segments: Sequence[ZmpSegment], elapsed: float, omega: float) 
     return preview.reference(elapsed, omega, preview.dcm_at_first_end(omega))
 
 
-@dataclass(frozen=True)
-class SwingSample:
+class SwingSample(NamedTuple):
     """Swing sole reference: position (3,), velocity (3,), acceleration (3,) [m, m/s, m/s^2], yaw [rad], yaw rate [rad/s]."""
 
     position: np.ndarray

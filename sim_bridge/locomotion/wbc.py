@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import daqp
 import mujoco
@@ -70,8 +70,7 @@ def as_index(indices: np.ndarray) -> slice | np.ndarray:
     return indices
 
 
-@dataclass(frozen=True)
-class WbcTargets:
+class WbcTargets(NamedTuple):
     """What the QP should realise this control step.
 
     Attributes:
