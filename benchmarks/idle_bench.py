@@ -23,7 +23,7 @@ import statistics
 import time
 
 # A domain of this run's own, on this machine only: set before rclpy is imported.
-os.environ.setdefault("ROS_DOMAIN_ID", str(102 + random.randrange(60)))
+os.environ.setdefault("ROS_DOMAIN_ID", str(1 + random.randrange(101)))  # 1..101: safe for Fast DDS ports
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
 from std_srvs.srv import Trigger  # noqa: E402 - after the ROS environment is fixed

@@ -34,7 +34,8 @@ def main(argv: list[str] | None = None) -> int:
         scenario = schema.load(schema.find(name))
         print(f"\n{'=' * 78}\n{scenario.name}: {scenario.description}\n{'=' * 78}", flush=True)
         result = run(scenario, RunOptions(record=True, video=not options.no_video, plots=True, out=options.out))
-        ratio = f"wall {result.wall_time:.0f} s / sim {result.sim_time:.0f} s"
+        ratio = (f"start-up {result.startup_time:.0f} s, wall {result.wall_time:.1f} s / sim {result.sim_time:.1f} s"
+                 f" = {result.wall_time / max(result.sim_time, 1e-9):.2f}")
         rows.append((name, "PASSED" if result.passed else "FAILED", f"{ratio}  ->  {result.folder}"))
     print(f"\n{'=' * 78}\ndemo summary")
     for name, verdict, detail in rows:

@@ -1,7 +1,9 @@
 """Test-wide set-up: a ROS domain of this run's own, localhost discovery, headless rendering.
 
 The environment is fixed before anything imports rclpy, so every process started by a test
-(and the test's own clients) share this run's ``ROS_DOMAIN_ID`` and hear no other run.
+(and the test's own clients) share this run's ``ROS_DOMAIN_ID`` and hear no other run. With
+pytest-xdist each worker takes the next domain after the run's base, so workers never hear each
+other either.
 """
 
 from __future__ import annotations
@@ -9,6 +11,8 @@ from __future__ import annotations
 import os
 
 # Domain ids 1..101 are safe for Fast DDS ports; 0 is everyone's default, so it is avoided.
-os.environ["ROS_DOMAIN_ID"] = str(os.environ.get("SIM_TEST_DOMAIN_ID") or 1 + os.getpid() % 100)
+os.environ.setdefault("SIM_TEST_DOMAIN_ID", str(1 + os.getpid() % 100))  # the run's base; workers inherit it
+_worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0").removeprefix("gw")
+os.environ["ROS_DOMAIN_ID"] = str(1 + (int(os.environ["SIM_TEST_DOMAIN_ID"]) - 1 + int(_worker or 0)) % 101)
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("MUJOCO_GL", "egl")

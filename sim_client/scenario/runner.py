@@ -81,10 +81,11 @@ class RunResult:
     passed: bool
     verdicts: list[Verdict]
     failures: list[str]
-    wall_time: float
-    sim_time: float
+    wall_time: float  # [s] from the start mark (nodes up, keyframe restored) to the end; excludes startup
+    sim_time: float  # [s] of sim time over the same span
     folder: pathlib.Path
     report: dict[str, Any] = field(default_factory=dict)
+    startup_time: float = 0.0  # [s] wall time to find the nodes ready and reset (process start-up, discovery)
 
 
 def _fmt(value: Any) -> str:
@@ -482,9 +483,11 @@ class ScenarioRun:
         mode = "lock-stepped, as fast as possible" if self.lock_step else f"real-time factor {self.rtf:g}"
         self.progress.say(f"scenario {scenario.name} ({scenario.robot}, seed {scenario.seed}, {mode})")
         sim_start = 0.0
+        run_wall0 = self._wall0
         try:
             self.start()
             sim_start = self.now()
+            run_wall0 = time.monotonic()
             self.run_steps()
         except (StepFailure, WaitTimeout) as error:
             self.failures.append(str(error))
@@ -493,18 +496,19 @@ class ScenarioRun:
             self.failures.append(f"{type(error).__name__}: {error}")
             self.progress.say(f"  error: {type(error).__name__}: {error}")
         self.marks.setdefault("end", self.now())
+        run_wall = time.monotonic() - run_wall0
         self._settle_records()
         verdicts = [*self.param_verdicts, *(self.judge(e) for e in scenario.expectations)]
         self._finish_goals()
-        wall = time.monotonic() - self._wall0
-        sim = self.now() - sim_start
+        sim = self.marks["end"] - sim_start
         passed = not self.failures and all(v.passed for v in verdicts)
         self.progress.say("")
         for verdict in verdicts:
             self.progress.say("  " + verdict.line_text())
         for failure in self.failures:
             self.progress.say(f"  FAIL  {failure}")
-        result = RunResult(scenario.name, passed, verdicts, list(self.failures), wall, sim, self.folder)
+        result = RunResult(scenario.name, passed, verdicts, list(self.failures), run_wall, sim, self.folder,
+                           startup_time=run_wall0 - self._wall0)
         result.report = self._report(result)
         return result
 
@@ -565,6 +569,7 @@ class ScenarioRun:
             "real_time_factor": self.rtf,
             "started": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
             "passed": result.passed,
+            "startup_wall_s": round(result.startup_time, 3),
             "wall_time_s": round(result.wall_time, 3),
             "sim_time_s": round(result.sim_time, 3),
             "wall_per_sim": round(result.wall_time / result.sim_time, 3) if result.sim_time > 0 else None,
@@ -698,7 +703,8 @@ def _write_artifacts(run_: ScenarioRun, result: RunResult, stream: TextIO) -> No
         verdict = "PASSED" if result.passed else "FAILED"
         ratio = f"{result.wall_time / result.sim_time:.2f}" if result.sim_time > 0 else "n/a"
         stream.write(f"\n{result.scenario}: {verdict}  ({sum(v.passed for v in result.verdicts)}/{len(result.verdicts)} "
-                     f"expectations; wall {result.wall_time:.1f} s, sim {result.sim_time:.1f} s, wall/sim {ratio})\n")
+                     f"expectations; start-up {result.startup_time:.1f} s, then wall {result.wall_time:.1f} s for sim "
+                     f"{result.sim_time:.1f} s: wall/sim {ratio})\n")
         for kind, path in paths.items():
             stream.write(f"  {kind}: {path}\n")
         for error in result.report.get("artifact_errors", []):
