@@ -23,7 +23,7 @@ from sensor_msgs.msg import JointState
 from nav_msgs.msg import Odometry
 
 import robot_models
-from nodes.common import ActiveGoal, GoalOwnership, GoalRejected, Latest, finish_goal, goal_validator, guarded, spin_server
+from nodes.common import ActiveGoal, GoalOwnership, GoalRejected, OnDemandTopic, finish_goal, goal_validator, guarded, spin_server
 from nodes.conversions import duration_msg, pose_from_msg, pose_msg, seconds_of
 from nodes.parameters import ParameterSpec, declare
 from sim_bridge.arm import ArmKinematics
@@ -35,6 +35,7 @@ from sim_interfaces.srv import ComputeIK
 
 NODE_NAME = "arm"
 ACK_TIMEOUT_S = 10.0  # wall seconds to wait for /sim to confirm a command
+FRESH_TIMEOUT_S = 2.0  # wall seconds to wait for a first message of a stream subscribed on demand
 WORLD_FRAMES = ("", "world", "odom")
 
 PARAMETERS = (
@@ -71,16 +72,14 @@ class ArmServer(Node):
         self.kinematics = ArmKinematics(self.robot)
         self.arms = tuple(self.kinematics.arms)
         self._ownership = GoalOwnership(first_seq=1 + (os.getpid() % 1000) * 100_000)
-        self._arm_state: Latest[ArmState] = Latest(key=lambda msg: msg.arm)
-        self._objects: Latest[ObjectStates] = Latest()
-        self._joints: Latest[JointState] = Latest()
-        self._odom: Latest[Odometry] = Latest()
         group = ReentrantCallbackGroup()
+        # Streams of /sim, subscribed only while a goal or a query needs them: an idle /arm receives nothing.
+        self._arm_state: OnDemandTopic[ArmState] = OnDemandTopic(self, ArmState, "/sim/arm_state", 50, group,
+                                                                 key=lambda msg: msg.arm)
+        self._objects: OnDemandTopic[ObjectStates] = OnDemandTopic(self, ObjectStates, "/objects", 10, group)
+        self._joints: OnDemandTopic[JointState] = OnDemandTopic(self, JointState, "/joint_states", 10, group)
+        self._odom: OnDemandTopic[Odometry] = OnDemandTopic(self, Odometry, "/odom", 10, group)
         self._command_pub = self.create_publisher(ArmCommand, "/sim/arm_command", QoSProfile(depth=50))
-        self.create_subscription(ArmState, "/sim/arm_state", self._arm_state.put, 50, callback_group=group)
-        self.create_subscription(ObjectStates, "/objects", self._objects.put, 10, callback_group=group)
-        self.create_subscription(JointState, "/joint_states", self._joints.put, 10, callback_group=group)
-        self.create_subscription(Odometry, "/odom", self._odom.put, 10, callback_group=group)
         self._move_server = ActionServer(
             self, MoveArm, "/move_arm", execute_callback=guarded(self, MoveArm, self._execute_move),
             goal_callback=goal_validator(self, "MoveArm", self._validate_move), handle_accepted_callback=self._start,
@@ -121,9 +120,10 @@ class ArmServer(Node):
         if frame in WORLD_FRAMES:
             return Pose(pose.position, quat)
         if frame == self.robot.base_body:
-            odom = self._odom.get()
+            odom = self._odom.fresh(FRESH_TIMEOUT_S)
             if odom is None:
-                raise GoalRejected(f"frame {frame!r} needs /odom, which has not arrived yet")
+                raise GoalRejected(f"frame {frame!r} needs /odom, which /sim did not publish within "
+                                   f"{FRESH_TIMEOUT_S:g} s (is it running, not paused?)")
             base = pose_from_msg(odom.pose.pose)
             return _compose(base, Pose(pose.position, quat))
         raise GoalRejected(f"unknown frame {frame!r}; allowed: world (or empty), odom, {self.robot.base_body}")
@@ -174,9 +174,9 @@ class ArmServer(Node):
         p = pick_pose.pose.position
         if not all(math.isfinite(v) for v in (p.x, p.y, p.z)):
             raise GoalRejected("give object_id, or a finite pick_pose")
-        objects = self._objects.get()
+        objects = self._objects.fresh(FRESH_TIMEOUT_S)
         if objects is None:
-            raise GoalRejected("no /objects received yet; give object_id")
+            raise GoalRejected(f"no /objects from /sim within {FRESH_TIMEOUT_S:g} s (is it running?); give object_id")
         distances = {name: math.dist((p.x, p.y, p.z), (o.position.x, o.position.y, o.position.z))
                      for name, o in zip(objects.names, objects.poses)}
         name, distance = min(distances.items(), key=lambda item: item[1])
@@ -202,10 +202,10 @@ class ArmServer(Node):
         before discovery matched this publisher with /sim's subscription is lost.
         """
         for tick in range(1, int(timeout_s / 0.1) + 1):
-            state = self._arm_state.get(arm)
+            state = self._arm_state.latest.get(arm)
             if state is not None and state.goal_seq == seq:
                 return state
-            self._arm_state.wait_next(0.1)
+            self._arm_state.latest.wait_next(0.1)
             if tick % 10 == 0:
                 self._send(command)
         return None
@@ -226,9 +226,10 @@ class ArmServer(Node):
                              max_linear_speed=scaling * float(self._param("max_linear_speed")),
                              max_angular_speed=scaling * float(self._param("max_angular_speed")), gripper_width=-1.0)
         command.target = pose_msg(target)
-        self._send(command)
         try:
-            return self._supervise_move(goal_handle, goal, arm, owner, target, timeout, result, command)
+            with self._arm_state.held():
+                self._send(command)
+                return self._supervise_move(goal_handle, goal, arm, owner, target, timeout, result, command)
         finally:
             self._ownership.release(arm, owner)
 
@@ -275,8 +276,8 @@ class ArmServer(Node):
                 feedback.percent_complete = float(min(100.0, max(0.0, 100.0 * (1.0 - state.position_error / start_distance))))
                 feedback.elapsed = duration_msg(now - start_time)
                 goal_handle.publish_feedback(feedback)
-            self._arm_state.wait_next(1.0)
-            state = self._arm_state.get(arm) or state
+            self._arm_state.latest.wait_next(1.0)
+            state = self._arm_state.latest.get(arm) or state
 
     def _interrupted(self, goal_handle: ServerGoalHandle, arm: str, owner: ActiveGoal, state: ArmState, result, codes):
         """End the goal if it was preempted, canceled (the arm then holds) or the sim was reset; else None."""
@@ -316,9 +317,10 @@ class ArmServer(Node):
             lift_height=goal.lift_height or float(self._param("lift_height")),
             placement_tolerance=float(self._param("placement_tolerance")), gripper_width=-1.0,
         )
-        self._send(command)
         try:
-            return self._supervise_pick(goal_handle, arm, owner, place, timeout, result, command)
+            with self._arm_state.held():
+                self._send(command)
+                return self._supervise_pick(goal_handle, arm, owner, place, timeout, result, command)
         finally:
             self._ownership.release(arm, owner)
 
@@ -357,8 +359,8 @@ class ArmServer(Node):
                 self._fill_pick(result, state)
                 return self._finish(goal_handle, result, PickPlace.Result.TIMEOUT,
                                     f"timed out after {timeout:.1f} s of sim time in stage {state.stage_name}", abort=True)
-            self._arm_state.wait_next(1.0)
-            state = self._arm_state.get(arm) or state
+            self._arm_state.latest.wait_next(1.0)
+            state = self._arm_state.latest.get(arm) or state
 
     @staticmethod
     def _fill_pick(result: PickPlace.Result, state: ArmState) -> None:
@@ -388,15 +390,16 @@ class ArmServer(Node):
         """Full qpos of the robot from /joint_states (and /odom for a floating base)."""
         model = self.robot.model
         qpos = model.key(self.robot.default_keyframe).qpos.copy()
-        joints = self._joints.get()
+        joints = self._joints.fresh(FRESH_TIMEOUT_S)
         if joints is None:
-            raise GoalRejected("no /joint_states received yet: is /sim running?")
+            raise GoalRejected(f"no /joint_states from /sim within {FRESH_TIMEOUT_S:g} s: is it running, not paused? "
+                               "(the IK starts from the current joint state)")
         for name, value in zip(joints.name, joints.position):
             qpos[model.joint(name).qposadr[0]] = value
         if self.robot.floating_base:
-            odom = self._odom.get()
+            odom = self._odom.fresh(FRESH_TIMEOUT_S)
             if odom is None:
-                raise GoalRejected("no /odom received yet: is /sim running?")
+                raise GoalRejected(f"no /odom from /sim within {FRESH_TIMEOUT_S:g} s: is it running, not paused?")
             adr = model.joint(model.body(self.robot.base_body).jntadr[0]).qposadr[0]
             base = pose_from_msg(odom.pose.pose)
             qpos[adr:adr + 3] = base.position

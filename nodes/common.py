@@ -8,6 +8,7 @@ import itertools
 import signal
 import sys
 import threading
+import time
 import traceback
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -16,6 +17,8 @@ from typing import Any, Generic, TypeVar
 import rclpy
 from rcl_interfaces.srv import GetParameters
 from rclpy.action.server import ServerGoalHandle
+from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -83,6 +86,80 @@ class Latest(Generic[MsgT]):
         with self._condition:
             version = self._version
             return self._condition.wait_for(lambda: self._version != version, timeout=timeout_s)
+
+
+
+class OnDemandTopic(Generic[MsgT]):
+    """A topic subscribed only while something needs it: idle servers receive nothing they do not use.
+
+    Every message a Python node receives costs an executor wake-up (measured here: ~0.4 ms of CPU on
+    an idle ``/arm``), and ``/sim`` publishes ``/joint_states`` at 200 Hz and its state topics at
+    30 Hz. A server that needs a stream only for a goal or a query holds it for that time
+    (:meth:`held`) or asks for a fresh message (:meth:`fresh`); the subscription then stays for
+    ``linger_s`` wall seconds after the last use, so a burst of goals or queries subscribes once.
+    Messages never outlive the subscription: after it ends, nothing stale is handed out.
+    """
+
+    def __init__(self, node: Node, msg_type: Any, topic: str, qos: Any, callback_group: Any,
+                 key: Callable[[MsgT], str] | None = None, linger_s: float = 5.0) -> None:
+        self.latest: Latest[MsgT] = Latest(key=key)
+        self.topic = topic
+        self._node = node
+        self._args = (msg_type, topic, self.latest.put, qos)
+        self._group = callback_group
+        self._linger_s = linger_s
+        self._lock = threading.Lock()
+        self._holders = 0
+        self._last_use = 0.0
+        self._subscription: Any = None
+        self._timer: Any = None
+
+    @property
+    def subscribed(self) -> bool:
+        return self._subscription is not None
+
+    def _acquire(self) -> None:
+        with self._lock:
+            self._holders += 1
+            if self._subscription is None:
+                self.latest.clear()
+                self._subscription = self._node.create_subscription(
+                    *self._args, callback_group=self._group,
+                    event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
+                self._timer = self._node.create_timer(1.0, self._expire, callback_group=self._group,
+                                                      clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def _release(self) -> None:
+        with self._lock:
+            self._holders -= 1
+            self._last_use = time.monotonic()
+
+    def _expire(self) -> None:
+        """Unsubscribe once nobody holds the topic and ``linger_s`` passed since the last use."""
+        with self._lock:
+            if self._subscription is None or self._holders > 0 or time.monotonic() - self._last_use < self._linger_s:
+                return
+            self._node.destroy_subscription(self._subscription)
+            self._node.destroy_timer(self._timer)
+            self._subscription = self._timer = None
+            self.latest.clear()
+
+    @contextlib.contextmanager
+    def held(self) -> Iterator[Latest[MsgT]]:
+        """Subscribed for the duration of a ``with`` block (and ``linger_s`` after); yields the box."""
+        self._acquire()
+        try:
+            yield self.latest
+        finally:
+            self._release()
+
+    def fresh(self, timeout_s: float, key: str = "") -> MsgT | None:
+        """The latest message since subscribing, waiting up to ``timeout_s`` wall seconds for one."""
+        with self.held() as latest:
+            deadline = time.monotonic() + timeout_s
+            while (msg := latest.get(key)) is None and time.monotonic() < deadline:
+                latest.wait_next(min(0.1, max(0.0, deadline - time.monotonic())))
+            return msg
 
 
 class GoalRejected(Exception):

@@ -25,7 +25,9 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 
 import robot_models
-from nodes.common import ActiveGoal, GoalOwnership, GoalRejected, Latest, finish_goal, goal_validator, guarded, spin_server
+from nodes.common import (
+    ActiveGoal, GoalOwnership, GoalRejected, Latest, OnDemandTopic, finish_goal, goal_validator, guarded, spin_server,
+)
 from nodes.conversions import duration_msg, grid_from_msg, seconds_of, yaw_of
 from nodes.parameters import ParameterSpec, declare
 from sim_bridge.navigation import NoPathError, PathFollower, plan_path
@@ -98,13 +100,12 @@ class LocomotionServer(Node):
         if not spec.feet_sites:
             raise GoalRejected(f"robot {robot!r} cannot walk; walking robots: g1")
         self._ownership = GoalOwnership(first_seq=1 + os.getpid() % 100_000)
-        self._odom: Latest[Odometry] = Latest()
-        self._state: Latest[LocomotionState] = Latest()
         self._map: Latest[OccupancyGridMsg] = Latest()
         group = ReentrantCallbackGroup()
+        # /odom and the controller state only while a goal runs: an idle /locomotion receives nothing but /map.
+        self._odom: OnDemandTopic[Odometry] = OnDemandTopic(self, Odometry, "/odom", 10, group)
+        self._state: OnDemandTopic[LocomotionState] = OnDemandTopic(self, LocomotionState, "/sim/locomotion_state", 10, group)
         self._cmd_pub = self.create_publisher(Twist, "/cmd_vel", 10)
-        self.create_subscription(Odometry, "/odom", self._odom.put, 10, callback_group=group)
-        self.create_subscription(LocomotionState, "/sim/locomotion_state", self._state.put, 10, callback_group=group)
         self.create_subscription(OccupancyGridMsg, "/map", self._map.put,
                                  QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL), callback_group=group)
         self._walk_server = ActionServer(
@@ -140,19 +141,19 @@ class LocomotionServer(Node):
         deadline = time.monotonic() + ACK_TIMEOUT_S
         odom = None
         while odom is None and time.monotonic() < deadline:
-            if self._odom.wait_next(0.1):
-                odom = self._odom.get()
+            if self._odom.latest.wait_next(0.1):
+                odom = self._odom.latest.get()
         first: float | None = None
         while odom is not None and time.monotonic() < deadline:
-            state = self._state.get()
+            state = self._state.latest.get()
             if state is not None and seconds_of(state.header.stamp) >= seconds_of(odom.header.stamp):
                 # "Fallen" at the very start may still be news from before a reset that this node's
                 # queue has not caught up with: believe it once it has held FRESH_START_S of sim time.
                 first = seconds_of(odom.header.stamp) if first is None else first
                 if not self._fallen(odom, state) or seconds_of(odom.header.stamp) - first > FRESH_START_S:
                     return odom, state
-            if self._state.wait_next(0.1):
-                odom = self._odom.get() or odom
+            if self._state.latest.wait_next(0.1):
+                odom = self._odom.latest.get() or odom
         return None
 
     @staticmethod
@@ -163,8 +164,8 @@ class LocomotionServer(Node):
         return math.hypot(b.x - a.x, b.y - a.y) > 0.25 + 2.0 * dt
 
     def _next_odom(self) -> Odometry:
-        self._odom.wait_next(1.0)
-        odom = self._odom.get()
+        self._odom.latest.wait_next(1.0)
+        odom = self._odom.latest.get()
         assert odom is not None
         return odom
 
@@ -190,7 +191,7 @@ class LocomotionServer(Node):
             odom = self._next_odom()
             now = seconds_of(odom.header.stamp)
             start = now if start is None else start
-            state = self._state.get()
+            state = self._state.latest.get()
             if state is None or state.mode in (LocomotionState.STANDING, LocomotionState.FALLEN) or now - start > timeout_s:
                 return
             self._command(0.0)
@@ -207,7 +208,7 @@ class LocomotionServer(Node):
     def _execute_restartable(self, goal_handle: ServerGoalHandle, action_type, supervise, what: str):
         """Run ``supervise`` owning the legs; start it over when a reset is seen as it begins."""
         result = action_type.Result()
-        with self._ownership.owned(LEGS) as owner:
+        with self._ownership.owned(LEGS) as owner, self._odom.held(), self._state.held():
             for _ in range(MAX_RESTARTS):
                 try:
                     return supervise(goal_handle, goal_handle.request, owner, result)
@@ -261,13 +262,13 @@ class LocomotionServer(Node):
             if finished is not None:
                 return finished
             now = seconds_of(odom.header.stamp)
-            fell = self._fallen(odom, self._state.get())
+            fell = self._fallen(odom, self._state.latest.get())
             if fell:
                 self._command(0.0)
                 return finish_goal(self, goal_handle, result, Walk.Result.FELL, f"fell after {walked:.2f} m: {fell}", abort=True)
             if now - start_time > timeout:
                 self._stop_and_settle()
-                self._fill_walk(result, self._odom.get() or odom, self._distance_along(self._odom.get() or odom, start, forward))
+                self._fill_walk(result, self._odom.latest.get() or odom, self._distance_along(self._odom.latest.get() or odom, start, forward))
                 return finish_goal(self, goal_handle, result, Walk.Result.TIMEOUT,
                                    f"timed out after {timeout:.1f} s of sim time having walked {walked:.2f} m", abort=True)
             history.append((now, walked))
@@ -281,7 +282,7 @@ class LocomotionServer(Node):
             overshot = direction != sign
             if overshot or abs(to_go) <= max(0.01, pace * self._param("stop_lead_time")):
                 self._stop_and_settle()
-                odom = self._odom.get() or odom
+                odom = self._odom.latest.get() or odom
                 walked = self._distance_along(odom, start, forward)
                 self._fill_walk(result, odom, walked)
                 off = goal.distance - walked
@@ -303,7 +304,7 @@ class LocomotionServer(Node):
                 self._command(vx, wz=float(np.clip(1.0 * yaw_error - sign * 0.5 * lateral, -0.3, 0.3)))
             if now - last_feedback >= feedback_period:
                 last_feedback = now
-                state = self._state.get()
+                state = self._state.latest.get()
                 feedback = Walk.Feedback(distance_walked=walked, current_speed=odom.twist.twist.linear.x,
                                          steps_taken=steps.update(state.steps_taken) if state else steps.total,
                                          percent_complete=float(np.clip(100.0 * walked / goal.distance, 0.0, 100.0)))
@@ -382,7 +383,7 @@ class LocomotionServer(Node):
             if finished is not None:
                 return finished
             now = seconds_of(odom.header.stamp)
-            fell = self._fallen(odom, self._state.get())
+            fell = self._fallen(odom, self._state.latest.get())
             if fell:
                 self._command(0.0)
                 return finish_goal(self, goal_handle, result, codes.FELL, f"fell while navigating: {fell}", abort=True)
@@ -409,7 +410,7 @@ class LocomotionServer(Node):
                 continue
             if command.phase == "arrived":
                 self._stop_and_settle()
-                odom = self._odom.get() or odom
+                odom = self._odom.latest.get() or odom
                 result.final_pose = PoseStamped(header=odom.header, pose=odom.pose.pose)
                 error = math.dist((odom.pose.pose.position.x, odom.pose.pose.position.y), (gx, gy))
                 return finish_goal(self, goal_handle, result, codes.SUCCESS,
