@@ -28,11 +28,16 @@ $(STAMPS)/project: $(STAMPS)/interfaces pyproject.toml package.xml tools/registe
 demo: setup
 	$(VENV)/bin/sim-demo
 
+# Two workers, one test file each at a time (a file's bring-up stays in its worker); each worker
+# has a ROS domain of its own. TEST_WORKERS=0 runs everything in one process.
+TEST_WORKERS ?= 2
+PYTEST_PARALLEL := $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --dist loadfile)
+
 test: setup
-	$(PY) -m pytest
+	$(PY) -m pytest $(PYTEST_PARALLEL)
 
 test-fast: setup
-	$(PY) -m pytest -m "not slow"
+	$(PY) -m pytest $(PYTEST_PARALLEL) -m "not slow"
 
 bench: bench-sim bench-walk bench-arm bench-nav bench-idle  ## every benchmark; figures are ratios measured in one run
 

@@ -223,6 +223,12 @@ def _watch_view(options: argparse.Namespace) -> int:
             session.wait_for(lambda: clock.latest is not None and odom.latest is not None, options.timeout, "/clock and /odom")
             console.print(view())
             return 0
+        if not console.is_terminal:  # piped into a log or another program: one snapshot per second
+            with _interrupts() as interrupted:
+                while True:
+                    console.print(view())
+                    if interrupted.wait(1.0):
+                        return 0
         with _interrupts() as interrupted, Live(view(), console=console, refresh_per_second=4) as live:
             while not interrupted.wait(0.25):  # the terminal refresh period, until Ctrl-C
                 live.update(view())
