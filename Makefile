@@ -7,7 +7,7 @@ STAMPS := $(VENV)/.stamps
 INTERFACE_FILES := $(shell find interfaces -type f)
 export MUJOCO_GL ?= egl
 
-.PHONY: setup demo test test-fast bench bench-sim bench-walk bench-arm bench-nav bench-idle clean
+.PHONY: setup demo test test-fast bench bench-sim bench-walk bench-arm bench-nav bench-idle bench-scenario clean
 
 setup: $(STAMPS)/project
 
@@ -39,7 +39,7 @@ test: setup
 test-fast: setup
 	$(PY) -m pytest $(PYTEST_PARALLEL) -m "not slow"
 
-bench: bench-sim bench-walk bench-arm bench-nav bench-idle  ## every benchmark; figures are ratios measured in one run
+bench: bench-sim bench-walk bench-arm bench-nav bench-idle bench-scenario  ## every benchmark; figures are ratios measured in one run
 
 bench-sim: setup
 	$(PY) benchmarks/sim_bench.py
@@ -55,6 +55,9 @@ bench-nav: setup
 
 bench-idle: setup
 	$(PY) benchmarks/idle_bench.py
+
+bench-scenario: setup
+	$(PY) benchmarks/scenario_bench.py
 
 clean:
 	rm -rf $(VENV) build
