@@ -1,0 +1,32 @@
+"""Every node ends cleanly on Ctrl-C: exit code 0 and no traceback, after serving for a while."""
+
+from __future__ import annotations
+
+import signal
+
+import pytest
+
+from sim_interfaces.action import MoveArm
+from tests.ros.actions import ready_client
+from tests.ros.processes import NodeProcess
+
+STARTUP_S = 60.0
+
+
+@pytest.mark.parametrize("robot", ["panda", "g1"])
+def test_sim_node_and_servers_exit_cleanly_on_ctrl_c(client, robot):
+    commands = [["sim_node", "--ros-args", "-p", f"robot:={robot}"], ["arm_server", "--ros-args", "-p", f"robot:={robot}"]]
+    if robot == "g1":
+        commands.append(["locomotion_server", "--ros-args", "-p", "robot:=g1"])
+    processes = [NodeProcess(command) for command in commands]
+    try:
+        ready_client(client, MoveArm, "/move_arm", timeout=STARTUP_S)
+        client.wait_for(lambda: client.node.count_publishers("/joint_states") > 0, STARTUP_S, "/joint_states")
+    finally:
+        for process in processes:
+            process.send_signal(signal.SIGINT)
+        codes = [process.stop() for process in processes]
+    for process, code in zip(processes, codes):
+        output = process.output()
+        assert code == 0, f"{process.args[0]} exited with {code}:\n{output[-3000:]}"
+        assert "Traceback" not in output, f"{process.args[0]} printed a traceback on Ctrl-C:\n{output[-3000:]}"
