@@ -9,6 +9,9 @@ process's CPU time (user + system, from ``/proc/<pid>/stat``) is read over a win
   (the servers are idle; the sim node does the physics and its publication work);
 - "paused": after ``/sim/pause`` (the sim node is idle too).
 
+Next to them, the floor of any node on sim time: a bare rclpy node that only receives ``/clock``
+(at the sim's default 100 Hz) in a process of its own.
+
 Figures are percent of one core; the median of ``--rounds`` windows is printed.
 
 Usage: ``make bench-idle`` or ``.venv/bin/python benchmarks/idle_bench.py [--robots g1 panda] [--seconds 5]``.
@@ -70,8 +73,25 @@ def median_table(rounds: list[dict[str, float]]) -> dict[str, float]:
     return {name: statistics.median(r[name] for r in rounds) for name in rounds[0]}
 
 
+# The floor: a bare rclpy node on sim time (subscribed to /clock only, nothing else), spun by rclpy's
+# single-threaded executor, in its own process.
+CLOCK_FLOOR = """
+import rclpy
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+rclpy.init()
+node = Node("idle_bench_clock_floor", parameter_overrides=[Parameter("use_sim_time", value=True)])
+try:
+    rclpy.spin(node)
+except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+    pass
+"""
+
+
 def bench_robot(robot: str, seconds: float, rounds: int) -> None:
     children = [ChildProcess(command) for command in commands_for(parse_args(["--robot", robot]), [])]
+    children.append(ChildProcess(["python", "-c", CLOCK_FLOOR]))
+    children[-1].args[0] = "floor: bare node"
     try:
         with RosSession(f"idle_bench_{robot}", use_sim_time=False) as session:
             wait_ready(session, robot)
