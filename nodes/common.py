@@ -262,14 +262,26 @@ def guarded(node: Node, action_type: Any, execute: Callable[[ServerGoalHandle], 
 
 
 def spin_server(node_factory: Callable[[str, list[Parameter]], Node], node_name: str, args: list[str] | None) -> int:
-    """``main`` of a server node: find the robot (parameter or /sim), build the node, spin it."""
+    """``main`` of a server node: find the robot (parameter or /sim), build the node, spin it.
+
+    Ctrl-C (or SIGTERM) ends it with code 0 at any point, while it starts up as while it serves.
+    """
+    argv = sys.argv if args is None else args
+    rclpy.init(args=argv)
+    try:
+        return _serve(node_factory, node_name, argv)
+    except KeyboardInterrupt:  # interrupted while starting up (asking /sim, building the node)
+        return 0
+    finally:
+        rclpy.try_shutdown()
+
+
+def _serve(node_factory: Callable[[str, list[Parameter]], Node], node_name: str, argv: list[str]) -> int:
     from rclpy.executors import ExternalShutdownException
 
     from nodes.executor import ServerExecutor, drop_qos_event_handlers
     from nodes.parameters import ParameterSpec, declare
 
-    argv = sys.argv if args is None else args
-    rclpy.init(args=argv)
     overrides = sim_time_overrides(argv)
     probe = Node(f"{node_name}_setup", parameter_overrides=overrides)
     try:

@@ -15,7 +15,7 @@ its wait set until the handler has run. Everything else is rclpy's own executor.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 from rclpy.event_handler import EventHandler
 from rclpy.executors import (
@@ -26,6 +26,8 @@ from rclpy.executors import (
     TimeoutException,
 )
 from rclpy.node import Node
+from rclpy.publisher import Publisher
+from rclpy.subscription import Subscription
 from rclpy.task import Task
 
 
@@ -66,7 +68,7 @@ class ServerExecutor(MultiThreadedExecutor):
     def _spin_once_impl(self, timeout_sec: Any = None, wait_condition: Any = lambda: False) -> None:
         """rclpy's own step (wait, submit one handler, collect finished ones), marking the handler queued."""
         try:
-            handler, _entity, _node = self.wait_for_ready_callbacks(timeout_sec, None, wait_condition)
+            handler: Any = self.wait_for_ready_callbacks(timeout_sec, None, wait_condition)[0]
         except (ExternalShutdownException, ShutdownException, TimeoutException, ConditionReachedException):
             return
         if isinstance(handler, _QueuedTask):
@@ -92,10 +94,12 @@ def drop_qos_event_handlers(node: Node) -> int:
     many handlers were dropped.
     """
     dropped = 0
-    for entity in (*node.publishers, *node.subscriptions):
-        for handler in entity.event_handlers:
+    entities: list[Publisher | Subscription] = [*node.publishers, *node.subscriptions]
+    for entity in entities:
+        handlers = cast("list[EventHandler]", entity.event_handlers)  # a list (rclpy 7.1 annotates one handler)
+        for handler in handlers:
             node.remove_waitable(handler)
             handler.destroy()
             dropped += 1
-        entity.event_handlers = []
+        entity.event_handlers = cast(EventHandler, [])
     return dropped

@@ -549,7 +549,11 @@ def _next_due(previous: float, period: float, now: float) -> float:
 def main(args: list[str] | None = None) -> int:
     """Console entry point: ``sim_node --ros-args -p robot:=g1``."""
     rclpy.init(args=args)
-    node = SimNode()
+    try:
+        node = SimNode()
+    except KeyboardInterrupt:  # Ctrl-C while it starts: end as quietly as when running
+        rclpy.try_shutdown()
+        return 0
     executor = ServerExecutor(num_threads=4)
     executor.add_node(node)
     code = 0
