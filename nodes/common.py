@@ -280,7 +280,7 @@ def _serve(node_factory: Callable[[str, list[Parameter]], Node], node_name: str,
     from rclpy.executors import ExternalShutdownException
 
     from nodes.executor import ServerExecutor, drop_qos_event_handlers
-    from nodes.parameters import ParameterSpec, declare
+    from nodes.parameters import ParameterSpec, declare, guard_parameter_services
 
     overrides = sim_time_overrides(argv)
     probe = Node(f"{node_name}_setup", parameter_overrides=overrides)
@@ -295,6 +295,7 @@ def _serve(node_factory: Callable[[str, list[Parameter]], Node], node_name: str,
         probe.destroy_node()
     node = node_factory(robot, overrides)
     drop_qos_event_handlers(node)
+    guard_parameter_services(node)
     executor = ServerExecutor(num_threads=4)
     executor.add_node(node)
     try:

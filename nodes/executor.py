@@ -10,12 +10,17 @@ pause. (Fixed upstream in rclpy late in 2025, in releases newer than the Jazzy w
 
 :class:`ServerExecutor` marks a handler as queued when it is submitted, so the executor goes back to
 its wait set until the handler has run. Everything else is rclpy's own executor.
-:func:`drop_qos_event_handlers` takes the other large cost of an idle node's wake-ups away.
+:func:`drop_qos_event_handlers` takes the other large cost of an idle node's wake-ups away. A callback
+that raises is logged with its traceback and the node keeps serving (rclpy re-raises it out of
+``spin()``, which ended the node: one malformed request killed it).
 """
 
 from __future__ import annotations
 
+import traceback
 from typing import Any, cast
+
+import rclpy.logging
 
 from rclpy.event_handler import EventHandler
 from rclpy.executors import (
@@ -29,6 +34,9 @@ from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.subscription import Subscription
 from rclpy.task import Task
+
+
+_LOGGER = rclpy.logging.get_logger("executor")
 
 
 class _QueuedTask(Task):
@@ -78,7 +86,10 @@ class ServerExecutor(MultiThreadedExecutor):
         for future in self._futures[:]:
             if future.done():
                 self._futures.remove(future)
-                future.result()  # raise any exception of a callback, as rclpy does
+                error = future.exception()
+                if error is not None:  # rclpy re-raises it here, out of spin(), and the node ends
+                    _LOGGER.error("a callback raised; the node keeps serving:\n"
+                                  + "".join(traceback.format_exception(error)).rstrip())
 
 
 def drop_qos_event_handlers(node: Node) -> int:

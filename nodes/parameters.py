@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, SetParametersResult
+from rcl_interfaces.msg import Parameter as ParameterMsg
+from rcl_interfaces.srv import SetParameters, SetParametersAtomically
 from rclpy.node import Node
 
 
@@ -36,3 +40,58 @@ def declare(node: Node, specs: tuple[ParameterSpec, ...]) -> None:
                 descriptor.integer_range = [IntegerRange(from_value=int(spec.low), to_value=int(spec.high), step=1)]
                 descriptor.additional_constraints = f"{int(spec.low)} <= value <= {int(spec.high)}"
         node.declare_parameter(spec.name, spec.default, descriptor)
+
+
+PARAMETER_TYPES = {value: name for name, value in vars(ParameterType).items() if name.startswith("PARAMETER_")}
+
+
+def parameter_problem(parameter: ParameterMsg) -> str:
+    """Why a parameter message cannot be judged at all ("" when it can); rclpy's services raise on these."""
+    if not parameter.name:
+        return "a parameter name must not be empty"
+    if parameter.value.type not in PARAMETER_TYPES:
+        known = ", ".join(f"{value} {name.removeprefix('PARAMETER_')}" for value, name in sorted(PARAMETER_TYPES.items()))
+        return f"parameter {parameter.name!r}: value type {parameter.value.type} is not a parameter type ({known})"
+    return ""
+
+
+def guard_parameter_services(node: Node) -> None:
+    """Refuse malformed parameter messages with a reason before rclpy's own services see them.
+
+    rclpy's ``~/set_parameters`` and ``~/set_parameters_atomically`` raise on a value type outside
+    ParameterType (and let an empty name through): the exception left the executor and ended the
+    node. Here such parameters are refused with a reason that says what is allowed; the others of
+    a ``set_parameters`` request are set as usual (each independently, as that service promises),
+    an atomic request is refused whole.
+    """
+    for service in node.services:
+        if service.srv_type is SetParameters:
+            service.callback = _guarded_set(service.callback)
+        elif service.srv_type is SetParametersAtomically:
+            service.callback = _guarded_set_atomically(service.callback)
+
+
+def _guarded_set(inner: Callable[[Any, Any], Any]) -> Callable[[Any, Any], Any]:
+    def set_parameters(request: SetParameters.Request, response: SetParameters.Response) -> SetParameters.Response:
+        problems = [parameter_problem(p) for p in request.parameters]
+        if not any(problems):
+            return inner(request, response)
+        valid = SetParameters.Request(parameters=[p for p, problem in zip(request.parameters, problems) if not problem])
+        applied = iter(inner(valid, SetParameters.Response()).results if valid.parameters else [])
+        response.results = [SetParametersResult(successful=False, reason=problem) if problem else next(applied)
+                            for problem in problems]
+        return response
+
+    return set_parameters
+
+
+def _guarded_set_atomically(inner: Callable[[Any, Any], Any]) -> Callable[[Any, Any], Any]:
+    def set_parameters_atomically(request: SetParametersAtomically.Request,
+                                  response: SetParametersAtomically.Response) -> SetParametersAtomically.Response:
+        problems = [problem for problem in map(parameter_problem, request.parameters) if problem]
+        if not problems:
+            return inner(request, response)
+        response.result = SetParametersResult(successful=False, reason="; ".join(problems) + "; nothing was set")
+        return response
+
+    return set_parameters_atomically

@@ -39,7 +39,7 @@ from tf2_msgs.msg import TFMessage
 import robot_models
 from nodes.conversions import occupancy_grid_msg, set_pose, set_time
 from nodes.executor import ServerExecutor, drop_qos_event_handlers
-from nodes.parameters import ParameterSpec, declare
+from nodes.parameters import ParameterSpec, declare, guard_parameter_services
 from nodes.plugins import InLoopPlugins
 from nodes.serialized import ClockTemplate, JointStateTemplate, TemplateError
 from nodes.tf_builder import TransformSet, link_pairs
@@ -554,6 +554,7 @@ def main(args: list[str] | None = None) -> int:
     except KeyboardInterrupt:  # Ctrl-C while it starts: end as quietly as when running
         rclpy.try_shutdown()
         return 0
+    guard_parameter_services(node)
     executor = ServerExecutor(num_threads=4)
     executor.add_node(node)
     code = 0

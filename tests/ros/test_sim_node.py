@@ -143,8 +143,9 @@ def test_reset_restores_the_keyframe_exactly_and_time_keeps_running(client, g1):
     keyframe = robot_models.load("g1").model.key("stand")
     model = robot_models.load("g1").model
     expected = np.array([keyframe.qpos[model.joint(j).qposadr[0]] for j in g1_constants.ALL_JOINTS])
-    joints = client.record(JointState, "/joint_states", keep=20_000)
-    clock = client.record(Clock, "/clock", keep=50_000)
+    # Deep queues: a test process starved for a moment must not drop the message of the reset instant.
+    joints = client.record(JointState, "/joint_states", qos=1000, keep=20_000)
+    clock = client.record(Clock, "/clock", qos=1000, keep=50_000)
     client.wait_for(lambda: joints.count > 50, 20.0, "/joint_states")
     before = np.array(joints.latest.position)
     assert np.abs(before - expected).max() > 1e-6, "the standing robot has settled away from the keyframe"
