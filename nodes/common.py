@@ -88,7 +88,6 @@ class Latest(Generic[MsgT]):
             return self._condition.wait_for(lambda: self._version != version, timeout=timeout_s)
 
 
-
 class OnDemandTopic(Generic[MsgT]):
     """A topic subscribed only while something needs it: idle servers receive nothing they do not use.
 
@@ -103,7 +102,6 @@ class OnDemandTopic(Generic[MsgT]):
     def __init__(self, node: Node, msg_type: Any, topic: str, qos: Any, callback_group: Any,
                  key: Callable[[MsgT], str] | None = None, linger_s: float = 5.0) -> None:
         self.latest: Latest[MsgT] = Latest(key=key)
-        self.topic = topic
         self._node = node
         self._args = (msg_type, topic, self.latest.put, qos)
         self._group = callback_group
@@ -113,10 +111,6 @@ class OnDemandTopic(Generic[MsgT]):
         self._last_use = 0.0
         self._subscription: Any = None
         self._timer: Any = None
-
-    @property
-    def subscribed(self) -> bool:
-        return self._subscription is not None
 
     def _acquire(self) -> None:
         with self._lock:

@@ -21,7 +21,6 @@ import traceback
 from typing import Any, cast
 
 import rclpy.logging
-
 from rclpy.event_handler import EventHandler
 from rclpy.executors import (
     ConditionReachedException,
@@ -34,7 +33,6 @@ from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.subscription import Subscription
 from rclpy.task import Task
-
 
 _LOGGER = rclpy.logging.get_logger("executor")
 
