@@ -7,7 +7,7 @@ STAMPS := $(VENV)/.stamps
 INTERFACE_FILES := $(shell find interfaces -type f)
 export MUJOCO_GL ?= egl
 
-.PHONY: setup demo test test-fast bench bench-sim bench-walk bench-arm bench-nav bench-idle bench-scenario clean
+.PHONY: setup lint demo test test-fast bench bench-sim bench-walk bench-arm bench-nav bench-idle bench-scenario clean
 
 setup: $(STAMPS)/project
 
@@ -33,7 +33,13 @@ demo: setup
 TEST_WORKERS ?= 2
 PYTEST_PARALLEL := $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --dist loadfile)
 
-test: setup
+# The lint and type gate (configured in pyproject.toml); `make test` runs it first and stops when it fails.
+# Its tools come from requirements.txt with the set-up; mypy checks against the installed project.
+lint: $(STAMPS)/project
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/mypy
+
+test: setup lint
 	$(PY) -m pytest $(PYTEST_PARALLEL)
 
 test-fast: setup
