@@ -29,12 +29,13 @@ import time
 os.environ.setdefault("ROS_DOMAIN_ID", str(1 + random.randrange(101)))  # 1..101: safe for Fast DDS ports
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
-from std_srvs.srv import Trigger  # noqa: E402 - after the ROS environment is fixed
+# Imported once the ROS environment above is fixed.
+from std_srvs.srv import Trigger
 
-import robot_models  # noqa: E402
-from nodes.bringup import commands_for, parse_args  # noqa: E402
-from sim_client.processes import ChildProcess  # noqa: E402
-from sim_client.session import RosSession  # noqa: E402
+import robot_models
+from nodes.bringup import commands_for, parse_args
+from sim_client.processes import ChildProcess
+from sim_client.session import RosSession
 
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
 

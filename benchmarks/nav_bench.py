@@ -38,7 +38,7 @@ def navigate(sim: Simulation, walker: WalkingController, grid, goal: tuple[float
     sim.reset()
     path = plan_path(grid, (0.0, 0.0), goal[:2])
     follower = PathFollower(path, goal[2])
-    steps_per_command = int(round(COMMAND_PERIOD_S / sim.control_timestep))
+    steps_per_command = round(COMMAND_PERIOD_S / sim.control_timestep)
     deadline = sim.time + path_length(path) / speed * 3.0 + 30.0
     start_sim, start_wall = sim.time, time.perf_counter()
     outcome = "timeout"
@@ -77,7 +77,7 @@ def main() -> None:
     sim.set_controller(Slot.LOCOMOTION, walker)
     grid = grid_from_obstacles(robot.obstacles).inflated(INFLATION_M)
     rng = np.random.default_rng(options.seed)
-    results = []
+    results: list[dict] = []
     while len(results) < options.goals:
         goal = (float(rng.uniform(-1.5, 4.5)), float(rng.uniform(-2.5, 2.5)), float(rng.uniform(-math.pi, math.pi)))
         if not grid.is_free(*goal[:2]) or math.dist(goal[:2], (0.0, 0.0)) < 1.0:

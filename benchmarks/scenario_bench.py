@@ -27,10 +27,12 @@ os.environ.setdefault("ROS_DOMAIN_ID", str(1 + random.randrange(101)))  # 1..101
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 
-import robot_models  # noqa: E402 - after the ROS environment is fixed
-from sim_client.scenario import schema  # noqa: E402
-from sim_client.scenario.runner import RunOptions, run  # noqa: E402
-from walk_bench import core_walk  # noqa: E402
+# Imported once the ROS environment and the path above are fixed.
+import robot_models
+from sim_client.scenario import schema
+from sim_client.scenario.runner import RunOptions, run
+
+from walk_bench import core_walk
 
 
 def main() -> None:

@@ -85,7 +85,7 @@ def unpaced_ratio(session: RosSession, robot: str, rounds: int, all_topics: bool
             raw = raw_step_rate(robot, seconds=1.0) * timestep
             assert session.call(Trigger, "/sim/resume", Trigger.Request()).success
             first = rtf.count + 1  # the first report after resuming covers part of a window: skip it
-            session.wait_for(lambda: rtf.count >= first + 2, 30.0, "two real-time-factor reports")
+            session.wait_for(lambda: rtf.count >= first + 2, 30.0, "two real-time-factor reports")  # noqa: B023 - called in this iteration
             node = statistics.median(m.data for m in rtf.messages()[first:first + 2])
             raw_rates.append(raw)
             node_rates.append(node)
@@ -159,7 +159,8 @@ def ros_floor_cpu(session: RosSession, robot: str, period_s: float, seconds: flo
     node costs above this is its own.
     """
     arrivals: list[float] = []
-    subscription = session.node.create_subscription(JointState, "/joint_states", lambda _m: arrivals.append(time.monotonic()), 100)
+    subscription = session.node.create_subscription(
+        JointState, "/joint_states", lambda _m: arrivals.append(time.monotonic()), 100)
     with running(["python", __file__, "--ros-floor-child", robot, str(period_s), str(seconds)]) as child:
         session.wait_for(lambda: not child.alive(), seconds + 60.0, "the floor measurement")
         match = re.search(r"FLOOR thread \S+ process (\S+)", child.output())
@@ -172,7 +173,8 @@ def paced_cpu_and_jitter(session: RosSession, robot: str, seconds: float) -> dic
     args = ["sim_node", "--ros-args", "-p", f"robot:={robot}", "-p", "real_time_factor:=1.0", "-p", "joint_state_rate:=500.0"]
     with running(args) as node:
         arrivals: list[float] = []
-        subscription = session.node.create_subscription(JointState, "/joint_states", lambda _m: arrivals.append(time.monotonic()), 100)
+        subscription = session.node.create_subscription(
+            JointState, "/joint_states", lambda _m: arrivals.append(time.monotonic()), 100)
         session.wait_for(lambda: len(arrivals) > 100, 60.0, "/joint_states at 500 Hz")
         arrivals.clear()
         cpu0, wall0 = process_cpu_seconds(node.process.pid), time.monotonic()

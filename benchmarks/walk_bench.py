@@ -18,8 +18,9 @@ from __future__ import annotations
 import argparse
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Self
+from typing import Any, Self
 
 import mujoco
 import numpy as np
@@ -210,11 +211,11 @@ class PartTimer:
             setattr(owner, attribute, original)
         self._originals.clear()
 
-    def _timed(self, name: str, function):  # type: ignore[no-untyped-def]
+    def _timed(self, name: str, function: Callable[..., Any]) -> Callable[..., Any]:
         seconds = self.seconds
         clock = time.perf_counter
 
-        def timed(*args, **kwargs):  # type: ignore[no-untyped-def]
+        def timed(*args: Any, **kwargs: Any) -> Any:
             start = clock()
             result = function(*args, **kwargs)
             seconds[name] += clock() - start
@@ -270,7 +271,8 @@ def main() -> None:
     if args.core_only:
         return
 
-    print(f"{'cmd m/s':>8} {'seed':>4} {'fell':>5} {'dist m':>7} {'speed m/s':>9} {'lat cm/m':>9} {'yaw deg/m':>9} {'sim s':>6} {'wall s':>7}")
+    print(f"{'cmd m/s':>8} {'seed':>4} {'fell':>5} {'dist m':>7} {'speed m/s':>9} {'lat cm/m':>9} {'yaw deg/m':>9} "
+          f"{'sim s':>6} {'wall s':>7}")
     best = None
     ticks = []
     for speed in args.speeds:
@@ -279,7 +281,8 @@ def main() -> None:
             r = walk(robot, speed, args.distance, args.disturbance, seed)
             ticks.append(r.tick_times)
             passed = passed and not r.fell and r.distance >= args.distance
-            print(f"{speed:8.2f} {seed:4d} {str(r.fell):>5} {r.distance:7.2f} {r.average_speed:9.3f} {100 * r.lateral_drift_per_m:9.2f} "
+            print(f"{speed:8.2f} {seed:4d} {r.fell!s:>5} {r.distance:7.2f} {r.average_speed:9.3f} "
+                  f"{100 * r.lateral_drift_per_m:9.2f} "
                   f"{r.heading_drift_per_m:9.3f} {r.sim_time:6.1f} {r.wall_time:7.1f}")
         if passed:
             best = speed if best is None else max(best, speed)

@@ -42,5 +42,12 @@ def load(name: str, scene: str | None = None) -> RobotSpec:
 
 
 __all__ = [
-    "JointLimits", "Obstacle", "ROBOT_NAMES", "RobotModelError", "RobotSpec", "UnknownRobotError", "UnknownSceneError", "load",
+    "ROBOT_NAMES",
+    "JointLimits",
+    "Obstacle",
+    "RobotModelError",
+    "RobotSpec",
+    "UnknownRobotError",
+    "UnknownSceneError",
+    "load",
 ]

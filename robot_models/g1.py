@@ -18,14 +18,7 @@ import mujoco
 import numpy as np
 
 from robot_models import g1_constants as names
-from robot_models.spec import (
-    Obstacle,
-    RobotSpec,
-    UnknownSceneError,
-    add_position_actuator,
-    joint_limits_of,
-    read_urdf,
-)
+from robot_models.spec import Obstacle, RobotSpec, UnknownSceneError, add_position_actuator, joint_limits_of, read_urdf
 
 PHYSICS_TIMESTEP_S = 0.002
 CONTROL_DECIMATION = 2  # 250 Hz control
@@ -75,6 +68,8 @@ def _add_body_shell(spec: mujoco.MjSpec) -> None:
             group=3, mass=0.0, rgba=[0.5, 0.5, 0.5, 0.3],
         )
         if shape == "capsule":
+            if end is None:
+                raise ValueError(f"body shell geom {name!r}: a capsule needs an end point")
             geom.type = mujoco.mjtGeom.mjGEOM_CAPSULE
             geom.fromto = [*start, *end]
             geom.size = [radius, 0.0, 0.0]

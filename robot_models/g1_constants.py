@@ -65,7 +65,8 @@ HAND_SITE_IN_WRIST: Final = (0.10, 0.0, 0.0)
 # (geom name, body, shape, size [m], from/centre [m], to [m] or None), in the body's frame; a
 # capsule runs from -> to, a sphere sits at its centre. Standing or walking, none touches the floor.
 SHELL_CONTYPE: Final = 2  # bit of the shell geoms; the floor and obstacles accept it (conaffinity)
-BODY_SHELL: Final = (
+Vec3 = tuple[float, float, float]
+BODY_SHELL: Final[tuple[tuple[str, str, str, float, Vec3, Vec3 | None], ...]] = (
     ("pelvis_shell", "pelvis", "sphere", 0.08, (0.0, 0.0, 0.0), None),
     ("torso_shell", "torso_link", "capsule", 0.09, (0.0, 0.0, 0.06), (0.0, 0.0, 0.24)),
     ("head_shell", "torso_link", "sphere", 0.08, (0.0, 0.0, 0.40), None),

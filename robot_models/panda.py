@@ -66,7 +66,7 @@ def build_spec() -> mujoco.MjSpec:
                    rgba=[0.55, 0.4, 0.25, 1.0], friction=GRASP_FRICTION)
     world.add_light(pos=[0.5, 0, 2.5], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
     world.add_camera(name="track", pos=[1.6, -1.0, 0.9], xyaxes=[0.53, 0.85, 0, -0.35, 0.22, 0.91])
-    for box_name, position, color in zip(names.BOX_NAMES, names.BOX_HOME_POSITIONS, names.BOX_COLORS):
+    for box_name, position, color in zip(names.BOX_NAMES, names.BOX_HOME_POSITIONS, names.BOX_COLORS, strict=True):
         box = world.add_body(name=box_name, pos=list(position))
         box.add_freejoint(name=box_name)
         half = names.BOX_HALF_SIZE
@@ -78,7 +78,7 @@ def build_spec() -> mujoco.MjSpec:
         # Finger armature 0.02 removes grip-width chatter while squeezing a box.
         arm_joints[joint_name].armature = 0.1 if joint_name in names.ARM_JOINTS else 0.02
         arm_joints[joint_name].damping = [1.0 if joint_name in names.ARM_JOINTS else 0.0, 0.0, 0.0]
-    for joint_name, kp in zip(names.ARM_JOINTS, ARM_KP):
+    for joint_name, kp in zip(names.ARM_JOINTS, ARM_KP, strict=True):
         actuator = spec.add_actuator(name=joint_name, target=joint_name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         actuator.set_to_position(kp=kp, dampratio=ARM_DAMPRATIO)
         actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
@@ -89,11 +89,11 @@ def build_spec() -> mujoco.MjSpec:
 
 def _home_qpos(model: mujoco.MjModel) -> np.ndarray:
     qpos = model.qpos0.copy()
-    for joint_name, value in zip(names.ARM_JOINTS, names.HOME_ARM_QPOS):
+    for joint_name, value in zip(names.ARM_JOINTS, names.HOME_ARM_QPOS, strict=True):
         qpos[model.joint(joint_name).qposadr[0]] = value
     for joint_name in names.FINGER_JOINTS:
         qpos[model.joint(joint_name).qposadr[0]] = names.FINGER_OPEN
-    for box_name, position in zip(names.BOX_NAMES, names.BOX_HOME_POSITIONS):
+    for box_name, position in zip(names.BOX_NAMES, names.BOX_HOME_POSITIONS, strict=True):
         adr = int(model.joint(box_name).qposadr[0])
         qpos[adr : adr + 7] = [*position, 1.0, 0.0, 0.0, 0.0]
     return qpos

@@ -18,7 +18,6 @@ from sim_bridge.errors import SimulationFaultError, UnknownNameError
 from sim_bridge.servo import JointServo
 from sim_bridge.state import BaseState, Pose, SimState
 
-
 _BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
 MAX_PUSH_FORCE_N = 5000.0
 MAX_PUSH_TORQUE_NM = 1000.0

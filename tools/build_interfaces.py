@@ -50,9 +50,9 @@ def fix_exported_cmake_paths(prefix: pathlib.Path) -> int:
 
 def build_environment(prefix: pathlib.Path) -> dict[str, str]:
     site = pathlib.Path(sysconfig.get_paths()["purelib"])
-    libs = [str(prefix / "lib")] + sorted(glob.glob(str(site / "ros_*.libs")))
+    libs = [str(prefix / "lib"), *sorted(glob.glob(str(site / "ros_*.libs")))]
     env = dict(os.environ)
-    env["LD_LIBRARY_PATH"] = os.pathsep.join(libs + [env.get("LD_LIBRARY_PATH", "")]).rstrip(os.pathsep)
+    env["LD_LIBRARY_PATH"] = os.pathsep.join([*libs, env.get("LD_LIBRARY_PATH", "")]).rstrip(os.pathsep)
     env["_ROS_WHEELS_BOOTSTRAP_COMPLETE"] = "1"
     env["AMENT_PREFIX_PATH"] = str(prefix)
     env["CMAKE_PREFIX_PATH"] = str(prefix)

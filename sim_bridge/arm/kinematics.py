@@ -8,6 +8,7 @@ arm, gripper, free objects) every DoF but the arm's is frozen by an equality con
 from __future__ import annotations
 
 import copy
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -127,8 +128,8 @@ def _reach(model: mujoco.MjModel, joints: Sequence[str], site: str, qpos: np.nda
     data = mujoco.MjData(model)
     data.qpos[:] = qpos
     mujoco.mj_kinematics(model, data)
-    points = [data.xanchor[model.joint(j).id].copy() for j in joints] + [data.site(site).xpos.copy()]
-    return float(sum(np.linalg.norm(b - a) for a, b in zip(points[:-1], points[1:])))
+    points = [*(data.xanchor[model.joint(j).id].copy() for j in joints), data.site(site).xpos.copy()]
+    return float(sum(np.linalg.norm(b - a) for a, b in itertools.pairwise(points)))
 
 
 def arm_infos(robot: RobotSpec, scene: ArmSceneConfig) -> dict[str, ArmInfo]:
@@ -437,9 +438,10 @@ class _ReducedQP:
         limited = {int(d) for d in limit.indices}
         self.limit_gain = limit.gain
         # An unlimited joint gets a bound so large it is never active (daqp reads >= 1e30 as none).
-        self.q_min = np.array([limit.lower[a] if d in limited else -self.INFINITY for a, d in zip(info.qpos_adr, info.dof_adr)])
-        self.q_max = np.array([limit.upper[a] if d in limited else self.INFINITY for a, d in zip(info.qpos_adr, info.dof_adr)])
-        speed = dict(zip((int(i) for i in problem.velocity_limit.indices), problem.velocity_limit.limit))
+        adrs = list(zip(info.qpos_adr, info.dof_adr, strict=True))
+        self.q_min = np.array([limit.lower[a] if d in limited else -self.INFINITY for a, d in adrs])
+        self.q_max = np.array([limit.upper[a] if d in limited else self.INFINITY for a, d in adrs])
+        speed = dict(zip((int(i) for i in problem.velocity_limit.indices), problem.velocity_limit.limit, strict=True))
         self.speed = np.array([speed.get(int(d), self.INFINITY) for d in info.dof_adr])
         self.sense = np.zeros(n, dtype=np.int32)
         self.no_rows = np.zeros((0, n))
@@ -577,7 +579,9 @@ class _CollisionRows:
         return np.array(rows), np.array(bounds)
 
 
-def solve_offline(problem: IKProblem, target: Pose, position_only: bool, seeds: Sequence[np.ndarray], qpos: np.ndarray) -> IKResult:
+def solve_offline(
+    problem: IKProblem, target: Pose, position_only: bool, seeds: Sequence[np.ndarray], qpos: np.ndarray
+) -> IKResult:
     """Converge an IK problem from each seed in turn until one reaches the target.
 
     Args:
@@ -624,7 +628,8 @@ def workspace_reason(info: ArmInfo, shoulder_world: np.ndarray, target: Pose, ta
         return (f"target is outside the workspace: {distance:.3f} m from the first joint of {info.name!r}, "
                 f"farther than its reach {info.reach:.3f} m")
     if table_top_z is not None and float(target.position[2]) < table_top_z:
-        return f"target is outside the workspace: z = {float(target.position[2]):.3f} m is below the table top z = {table_top_z:.3f} m"
+        return (f"target is outside the workspace: z = {float(target.position[2]):.3f} m "
+                f"is below the table top z = {table_top_z:.3f} m")
     return ""
 
 

@@ -216,10 +216,12 @@ class PickPlace:
         bounds = self.arm.kinematics.scene.table_xy_bounds
         x, y, _ = goal.place_position
         margin = self.half_size
-        if bounds is not None and not (bounds[0] + margin <= x <= bounds[1] - margin and bounds[2] + margin <= y <= bounds[3] - margin):
-            raise InvalidGoalError(
-                f"place position ({x:.3f}, {y:.3f}) is off the table: x must be in [{bounds[0] + margin:.3f}, "
-                f"{bounds[1] - margin:.3f}] m and y in [{bounds[2] + margin:.3f}, {bounds[3] - margin:.3f}] m")
+        if bounds is not None:
+            x_low, x_high, y_low, y_high = bounds[0] + margin, bounds[1] - margin, bounds[2] + margin, bounds[3] - margin
+            if not (x_low <= x <= x_high and y_low <= y <= y_high):
+                raise InvalidGoalError(
+                    f"place position ({x:.3f}, {y:.3f}) is off the table: x must be in [{x_low:.3f}, "
+                    f"{x_high:.3f}] m and y in [{y_low:.3f}, {y_high:.3f}] m")
         data = self._require_data()
         assert self._model is not None  # set with the data
         body = self._model.body(goal.object_name).id
@@ -316,8 +318,10 @@ class PickPlace:
             if not run.stage_commanded:
                 # Of the box's four equivalent yaws, grasp at the one nearest tool yaw 0 (mid wrist range).
                 run.grasp_yaw = _nearest_quarter_turn(_yaw_of(data.xquat[run.object_body]), 0.0)
-                self.arm.set_gripper(goal.arm, min(size + 2 * self.RELEASE_CLEARANCE, self.arm.kinematics.scene.gripper_open_width), goal.grip_force)
-                run.stage_commanded = self._move(run, object_position + [0.0, 0.0, goal.approach_height], run.grasp_yaw, goal.transport_speed)
+                opening = min(size + 2 * self.RELEASE_CLEARANCE, self.arm.kinematics.scene.gripper_open_width)
+                self.arm.set_gripper(goal.arm, opening, goal.grip_force)
+                above = object_position + np.array([0.0, 0.0, goal.approach_height])
+                run.stage_commanded = self._move(run, above, run.grasp_yaw, goal.transport_speed)
             elif self._arrived(run, 0.003, still=False):
                 self._next(run, data)
         elif stage == PickPlaceStage.DESCEND:
@@ -339,7 +343,8 @@ class PickPlace:
             run.stage_progress = min(elapsed / self.MIN_GRASP_TIME, 1.0)
             if elapsed >= self.MIN_GRASP_TIME and status.gripper.width < 0.5 * size:
                 self._finish(run, PickPlaceFailure.GRASP_MISSED,
-                             f"GRASP: the fingers closed to {status.gripper.width * 1000:.1f} mm without holding {goal.object_name!r}")
+                             f"GRASP: the fingers closed to {status.gripper.width * 1000:.1f} mm "
+                             f"without holding {goal.object_name!r}")
                 return
             if elapsed >= self.MIN_GRASP_TIME and held:
                 tool_pos, tool_mat = self._tool(data, run)
@@ -351,7 +356,8 @@ class PickPlace:
             if not run.stage_commanded:
                 tool_pos, _ = self._tool(data, run)
                 lift_z = self.table_top_z + self.half_size + goal.lift_height
-                run.stage_commanded = self._move(run, np.array([tool_pos[0], tool_pos[1], lift_z]), run.grasp_yaw, goal.contact_speed)
+                lifted = np.array([tool_pos[0], tool_pos[1], lift_z])
+                run.stage_commanded = self._move(run, lifted, run.grasp_yaw, goal.contact_speed)
             elif self._arrived(run, 0.003, still=False):
                 self._next(run, data)
         elif stage == PickPlaceStage.TRANSPORT:
@@ -389,7 +395,8 @@ class PickPlace:
         elif stage == PickPlaceStage.RETREAT:
             if not run.stage_commanded:
                 tool_pos, _ = self._tool(data, run)
-                run.stage_commanded = self._move(run, tool_pos + [0.0, 0.0, goal.approach_height], run.place_tool_yaw, goal.transport_speed)
+                above = tool_pos + np.array([0.0, 0.0, goal.approach_height])
+                run.stage_commanded = self._move(run, above, run.place_tool_yaw, goal.transport_speed)
             elif self._arrived(run, 0.003, still=False):
                 place = self._place_position(run)
                 run.placement_error = float(np.linalg.norm(data.xpos[run.object_body] - place))

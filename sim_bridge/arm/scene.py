@@ -8,8 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from robot_models import RobotSpec
-from robot_models import g1_constants, panda_constants
+from robot_models import RobotSpec, g1_constants, panda_constants
 
 
 @dataclass(frozen=True)

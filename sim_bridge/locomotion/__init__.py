@@ -18,4 +18,4 @@ from sim_bridge.locomotion.controller import WalkingController
 from sim_bridge.locomotion.params import PARAMETER_RANGES, GaitParameters
 from sim_bridge.locomotion.types import LocomotionMode, LocomotionStatus, Twist2D
 
-__all__ = ["GaitParameters", "LocomotionMode", "LocomotionStatus", "PARAMETER_RANGES", "Twist2D", "WalkingController"]
+__all__ = ["PARAMETER_RANGES", "GaitParameters", "LocomotionMode", "LocomotionStatus", "Twist2D", "WalkingController"]

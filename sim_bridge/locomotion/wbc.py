@@ -161,7 +161,7 @@ class WholeBodyQP:
         self.knee_qpos = np.array([model.joint(j).qposadr[0] for j in knees])
         self.knee_dofs = np.array([model.joint(j).dofadr[0] for j in knees])
         self._knee_z = np.array([nf + motor_joints.index(j) for j in knees])  # their column in z
-        self._knees = list(zip(self._knee_z.tolist(), self.knee_qpos.tolist(), self.knee_dofs.tolist()))
+        self._knees = list(zip(self._knee_z.tolist(), self.knee_qpos.tolist(), self.knee_dofs.tolist(), strict=True))
         self.torque_limit = np.array([model.jnt_actfrcrange[model.joint(j).id] for j in motor_joints])
         self.servo_limit = np.array([model.jnt_actfrcrange[model.joint(j).id] for j in servo_joints])
         leg = set(names.LEFT_LEG_JOINTS + names.RIGHT_LEG_JOINTS)

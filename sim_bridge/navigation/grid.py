@@ -37,8 +37,8 @@ class OccupancyGrid:
 
     def cell_of(self, x: float, y: float) -> tuple[int, int]:
         """(ix, iy) of the cell holding world point (x, y) [m]; may be outside the grid."""
-        return (int(math.floor((x - self.origin_xy[0]) / self.resolution)),
-                int(math.floor((y - self.origin_xy[1]) / self.resolution)))
+        return (math.floor((x - self.origin_xy[0]) / self.resolution),
+                math.floor((y - self.origin_xy[1]) / self.resolution))
 
     def center_of(self, ix: int, iy: int) -> tuple[float, float]:
         return (self.origin_xy[0] + (ix + 0.5) * self.resolution, self.origin_xy[1] + (iy + 0.5) * self.resolution)
@@ -53,7 +53,7 @@ class OccupancyGrid:
 
     def inflated(self, radius_m: float) -> OccupancyGrid:
         """A grid whose occupied cells grow by ``radius_m`` (disc), for a robot of that radius."""
-        cells = int(math.ceil(radius_m / self.resolution))
+        cells = math.ceil(radius_m / self.resolution)
         if cells <= 0:
             return self
         grown = self.occupied.copy()
@@ -71,8 +71,8 @@ def grid_from_obstacles(obstacles: tuple[Obstacle, ...], resolution: float = DEF
                         bounds: tuple[float, float, float, float] = DEFAULT_BOUNDS_M) -> OccupancyGrid:
     """Rasterise box footprints (cells whose centre lies inside a footprint are occupied)."""
     x_min, x_max, y_min, y_max = bounds
-    width = int(round((x_max - x_min) / resolution))
-    height = int(round((y_max - y_min) / resolution))
+    width = round((x_max - x_min) / resolution)
+    height = round((y_max - y_min) / resolution)
     xs = x_min + (np.arange(width) + 0.5) * resolution
     ys = y_min + (np.arange(height) + 0.5) * resolution
     gx, gy = np.meshgrid(xs, ys)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import heapq
+import itertools
 import math
 
 import numpy as np
@@ -19,8 +20,8 @@ def _line_free(grid: OccupancyGrid, a: tuple[int, int], b: tuple[int, int]) -> b
     """Whether the segment between two cell centres crosses only free cells (sampled at 1/4 cell)."""
     steps = 4 * max(abs(b[0] - a[0]), abs(b[1] - a[1]), 1)
     for i in range(steps + 1):
-        ix = int(math.floor(a[0] + 0.5 + (b[0] - a[0]) * i / steps))
-        iy = int(math.floor(a[1] + 0.5 + (b[1] - a[1]) * i / steps))
+        ix = math.floor(a[0] + 0.5 + (b[0] - a[0]) * i / steps)
+        iy = math.floor(a[1] + 0.5 + (b[1] - a[1]) * i / steps)
         if grid.occupied[iy, ix]:
             return False
     return True
@@ -74,16 +75,16 @@ def plan_path(grid: OccupancyGrid, start_xy: tuple[float, float], goal_xy: tuple
     kept = [cells[0]]
     index = 0
     while index < len(cells) - 1:
-        nxt = len(cells) - 1
-        while nxt > index + 1 and not _line_free(grid, cells[index], cells[nxt]):
-            nxt -= 1
-        kept.append(cells[nxt])
-        index = nxt
+        farthest = len(cells) - 1
+        while farthest > index + 1 and not _line_free(grid, cells[index], cells[farthest]):
+            farthest -= 1
+        kept.append(cells[farthest])
+        index = farthest
     waypoints = [grid.center_of(*c) for c in kept[1:]]
     waypoints[-1] = (float(goal_xy[0]), float(goal_xy[1]))
-    return [(float(start_xy[0]), float(start_xy[1]))] + waypoints
+    return [(float(start_xy[0]), float(start_xy[1])), *waypoints]
 
 
 def path_length(path: list[tuple[float, float]]) -> float:
     """Length of a polyline [m]."""
-    return float(sum(np.hypot(b[0] - a[0], b[1] - a[1]) for a, b in zip(path, path[1:])))
+    return float(sum(np.hypot(b[0] - a[0], b[1] - a[1]) for a, b in itertools.pairwise(path)))

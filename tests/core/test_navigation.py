@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import pytest
@@ -21,7 +22,7 @@ def test_path_goes_around_the_wall_and_stays_in_free_space(grid):
     clearance = grid_from_obstacles(robot_models.load("g1", "course").obstacles).inflated(0.40)
     assert path[0] == (0.0, 0.0) and path[-1] == (3.0, 0.0)
     assert max(abs(y) for _, y in path) > 0.9, "the wall spans y in [-0.9, 0.9]"
-    for (x0, y0), (x1, y1) in zip(path, path[1:]):
+    for (x0, y0), (x1, y1) in itertools.pairwise(path):
         for i in range(21):
             s = i / 20
             assert clearance.is_free(x0 + s * (x1 - x0), y0 + s * (y1 - y0)), "at least 0.40 m from every obstacle"

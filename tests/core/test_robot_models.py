@@ -21,7 +21,7 @@ def test_robot_holds_its_keyframe_for_ten_seconds(name):
     robot = robot_models.load(name)
     sim = Simulation(robot)
     start = sim.snapshot()
-    sim.step(int(round(HOLD_SECONDS / sim.control_timestep)))
+    sim.step(round(HOLD_SECONDS / sim.control_timestep))
     end = sim.snapshot()
     assert sim.time == pytest.approx(HOLD_SECONDS, abs=1e-6)
     assert np.all(np.isfinite(sim.data.qpos)) and np.all(np.isfinite(sim.data.qvel))
@@ -60,7 +60,8 @@ def test_a_shoved_g1_falls_and_lies_on_the_floor_without_sinking_into_it():
     assert pelvis < 0.3, "it fell"
     assert z.min() > 0.0 and pelvis > 0.05, "it lies on the floor, not in it"
     shell = {sim.model.geom(name).id for name, *_ in g1_names.BODY_SHELL}
-    touching = {int(c.geom1) for c in sim.data.contact[: sim.data.ncon]} | {int(c.geom2) for c in sim.data.contact[: sim.data.ncon]}
+    contacts = sim.data.contact[: sim.data.ncon]
+    touching = {int(c.geom1) for c in contacts} | {int(c.geom2) for c in contacts}
     assert touching & shell, "the body shell carries it"
 
 

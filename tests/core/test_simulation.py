@@ -189,7 +189,7 @@ def test_a_push_acts_for_exactly_its_duration_and_imparts_its_impulse():
 
 def test_bad_pushes_are_refused_and_change_nothing(panda_sim):
     before = panda_sim.data.qpos.copy()
-    with pytest.raises(UnknownNameError, match="bodies: .*panda_link0"):
+    with pytest.raises(UnknownNameError, match=r"bodies: .*panda_link0"):
         panda_sim.push("no_such_body", (1.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.1)
     for force, torque, duration, reason in [
         ((math.nan, 0.0, 0.0), (0.0, 0.0, 0.0), 0.1, "finite"),
