@@ -4,7 +4,17 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from robot_models.spec import JointLimits, Obstacle, RobotModelError, RobotSpec, UnknownRobotError, UnknownSceneError
+from robot_models.spec import (
+    ArmScene,
+    GraspLimits,
+    JointLimits,
+    Obstacle,
+    RobotModelError,
+    RobotSpec,
+    UnknownRobotError,
+    UnknownSceneError,
+    WalkingLimits,
+)
 
 _REGISTRY: dict[str, Callable[..., RobotSpec]] = {}
 
@@ -42,12 +52,6 @@ def load(name: str, scene: str | None = None) -> RobotSpec:
 
 
 __all__ = [
-    "ROBOT_NAMES",
-    "JointLimits",
-    "Obstacle",
-    "RobotModelError",
-    "RobotSpec",
-    "UnknownRobotError",
-    "UnknownSceneError",
-    "load",
+    "ROBOT_NAMES", "ArmScene", "GraspLimits", "JointLimits", "Obstacle", "RobotModelError", "RobotSpec", "UnknownRobotError",
+    "UnknownSceneError", "WalkingLimits", "load",
 ]

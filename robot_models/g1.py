@@ -14,11 +14,22 @@ Changes against the URDF as shipped:
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
 
 from robot_models import g1_constants as names
-from robot_models.spec import Obstacle, RobotSpec, UnknownSceneError, add_position_actuator, joint_limits_of, read_urdf
+from robot_models.spec import (
+    ArmScene,
+    Obstacle,
+    RobotSpec,
+    UnknownSceneError,
+    WalkingLimits,
+    add_position_actuator,
+    joint_limits_of,
+    read_urdf,
+)
 
 PHYSICS_TIMESTEP_S = 0.002
 CONTROL_DECIMATION = 2  # 250 Hz control
@@ -33,6 +44,14 @@ LEG_GAINS = {"hip_pitch": 500.0, "hip_roll": 500.0, "hip_yaw": 350.0, "knee": 50
 UPPER_BODY_KP = 150.0
 UPPER_BODY_KV = 3.0
 KD_OVER_KP = 0.03
+
+WALKING = WalkingLimits(
+    speed_range_mps=(0.05, 0.6),  # the gait's max_forward_speed tops out at 0.6 m/s
+    default_speed_mps=0.3,
+    max_walk_distance_m=100.0,
+    fall_height_m=0.45,  # the pelvis stands at 0.76 m in the stand keyframe
+    fall_tilt_rad=math.radians(50.0),
+)
 
 
 def _gain_for(joint: str) -> tuple[float, float]:
@@ -159,6 +178,14 @@ def _stand_qpos(model: mujoco.MjModel) -> np.ndarray:
     return qpos
 
 
+def _arm_scene(model: mujoco.MjModel) -> ArmScene:
+    """The G1's hands have no grippers; its arms must keep away from the pelvis, torso, legs and waist."""
+    leg_and_waist = names.LEFT_LEG_JOINTS + names.RIGHT_LEG_JOINTS + names.WAIST_JOINTS
+    bodies = (names.ROOT_BODY, names.TORSO_BODY, *(model.body(model.jnt_bodyid[model.joint(j).id]).name for j in leg_and_waist))
+    # The G1's meshes are visual-only in the physics model (the soles and the shell collide).
+    return ArmScene(obstacle_bodies=bodies, collision_from_joint=3, make_visuals_collide=True)
+
+
 def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
     """Build and compile the G1 scene.
 
@@ -200,4 +227,6 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
         control_decimation=CONTROL_DECIMATION,
         scene=scene,
         obstacles=obstacles,
+        arm_scene=_arm_scene(model),
+        walking=WALKING,
     )

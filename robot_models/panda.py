@@ -17,7 +17,15 @@ import mujoco
 import numpy as np
 
 from robot_models import panda_constants as names
-from robot_models.spec import RobotSpec, UnknownSceneError, add_position_actuator, joint_limits_of, read_urdf
+from robot_models.spec import (
+    ArmScene,
+    GraspLimits,
+    RobotSpec,
+    UnknownSceneError,
+    add_position_actuator,
+    joint_limits_of,
+    read_urdf,
+)
 
 PHYSICS_TIMESTEP_S = 0.002
 CONTROL_DECIMATION = 2  # 250 Hz control
@@ -26,6 +34,7 @@ ARM_DAMPRATIO = 1.0
 FINGER_KP = 1000.0
 FINGER_KV = 50.0
 FINGER_FORCE_LIMIT_N = 70.0
+GRASP = GraspLimits(max_force_n=FINGER_FORCE_LIMIT_N, default_force_n=20.0)
 CONTACT_SOLREF = [0.004, 1.0]
 GRASP_FRICTION = [1.0, 0.02, 0.001]
 
@@ -99,6 +108,24 @@ def _home_qpos(model: mujoco.MjModel) -> np.ndarray:
     return qpos
 
 
+def _arm_scene() -> ArmScene:
+    """One gripper (two finger servos) on the arm; the arm keeps away from the table top, boxes rest on it."""
+    return ArmScene(
+        grippers={"arm": names.FINGER_JOINTS},
+        gripper_open_width=2.0 * names.FINGER_OPEN,
+        obstacle_geoms=(names.TABLE_GEOM,),
+        collision_from_joint=3,
+        objects_table_top_z=names.TABLE_TOP_Z,
+        object_half_size=names.BOX_HALF_SIZE,
+        table_xy_bounds=(
+            names.TABLE_CENTER[0] - names.TABLE_HALF_SIZE[0],
+            names.TABLE_CENTER[0] + names.TABLE_HALF_SIZE[0],
+            names.TABLE_CENTER[1] - names.TABLE_HALF_SIZE[1],
+            names.TABLE_CENTER[1] + names.TABLE_HALF_SIZE[1],
+        ),
+    )
+
+
 def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
     """Build and compile the Panda scene (one scene: ``"table"``).
 
@@ -130,4 +157,6 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
         control_decimation=CONTROL_DECIMATION,
         objects=names.BOX_NAMES,
         scene=scene,
+        arm_scene=_arm_scene(),
+        grasp=GRASP,
     )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import pathlib
 import sys
 from dataclasses import dataclass, field
@@ -56,6 +57,86 @@ class UnknownSceneError(RobotModelError, KeyError):
 
 
 @dataclass(frozen=True)
+class ArmScene:
+    """What the arms of a robot scene carry and must keep away from (IK, grippers, pick-and-place).
+
+    The defaults describe arms without grippers and with nothing to avoid.
+
+    Attributes:
+        grippers: arm name -> finger joint names (each actuated by a position servo).
+        gripper_open_width: widest gripper opening [m] (sum of both finger travels).
+        obstacle_geoms: geoms the arm links must keep away from.
+        obstacle_bodies: bodies whose geoms the arm links must keep away from.
+        collision_from_joint: index in the arm's joint list of the first joint whose body
+            subtree is checked against the obstacles (links near the shoulder are skipped).
+        make_visuals_collide: the obstacle and arm geoms are visual-only in the physics model;
+            enable them in the IK model so mink's collision limit uses them.
+        objects_table_top_z: height of the surface objects rest on, world z [m] (None when no table).
+        object_half_size: half edge of the graspable boxes [m].
+        table_xy_bounds: (x_min, x_max, y_min, y_max) of the table top in the world frame [m]
+            (None when no table).
+    """
+
+    grippers: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    gripper_open_width: float = 0.0
+    obstacle_geoms: tuple[str, ...] = ()
+    obstacle_bodies: tuple[str, ...] = ()
+    collision_from_joint: int = 3
+    make_visuals_collide: bool = False
+    objects_table_top_z: float | None = None
+    object_half_size: float = 0.0
+    table_xy_bounds: tuple[float, float, float, float] | None = None
+
+
+@dataclass(frozen=True)
+class WalkingLimits:
+    """Defaults and limits of the walking skills (Walk, NavigateToPose, fall detection) of a legged robot.
+
+    Attributes:
+        speed_range_mps: (lowest, highest) walking speed a goal or the ``walking_speed`` parameter
+            may ask for [m/s].
+        default_speed_mps: walking speed used when nobody asks for one [m/s].
+        max_walk_distance_m: largest absolute distance of one Walk goal [m].
+        fall_height_m: height of the base body's origin above the floor (world z) below which the
+            robot counts as fallen [m].
+        fall_tilt_rad: tilt of the base body's z axis from the world's vertical beyond which the
+            robot counts as fallen [rad].
+    """
+
+    speed_range_mps: tuple[float, float]
+    default_speed_mps: float
+    max_walk_distance_m: float
+    fall_height_m: float
+    fall_tilt_rad: float
+
+    def __post_init__(self) -> None:
+        low, high = self.speed_range_mps
+        if not 0.0 < low <= self.default_speed_mps <= high:
+            raise ValueError(f"walking speeds must satisfy 0 < low <= default <= high, got {low}, "
+                             f"{self.default_speed_mps}, {high} m/s")
+        if self.max_walk_distance_m <= 0.0 or self.fall_height_m <= 0.0 or not 0.0 < self.fall_tilt_rad < math.pi:
+            raise ValueError("max_walk_distance_m and fall_height_m must be positive, fall_tilt_rad in (0, pi)")
+
+
+@dataclass(frozen=True)
+class GraspLimits:
+    """Defaults and limits of grasping with the robot's grippers (PickPlace, gripper commands).
+
+    Attributes:
+        max_force_n: largest squeeze force per finger [N]; the finger actuators' force limit.
+        default_force_n: squeeze force per finger used when nobody asks for one [N].
+    """
+
+    max_force_n: float
+    default_force_n: float
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.default_force_n <= self.max_force_n:
+            raise ValueError(f"grasp forces must satisfy 0 < default <= max, got {self.default_force_n}, "
+                             f"{self.max_force_n} N")
+
+
+@dataclass(frozen=True)
 class RobotSpec:
     """A robot scene ready to simulate.
 
@@ -77,6 +158,10 @@ class RobotSpec:
         objects: names of free bodies a user may manipulate (boxes).
         scene: name of the scene variant (e.g. ``"open"`` or ``"course"`` for the G1).
         obstacles: static obstacles of the scene (for path planning).
+        arm_scene: what the arms carry (grippers) and must keep away from; the core's arm
+            controllers read it instead of branching on the robot's name.
+        walking: defaults and limits of the walking skills (None for a robot that does not walk).
+        grasp: defaults and limits of grasping (None for a robot without grippers).
     """
 
     name: str
@@ -96,6 +181,15 @@ class RobotSpec:
     objects: tuple[str, ...] = field(default=())
     scene: str = "default"
     obstacles: tuple[Obstacle, ...] = field(default=())
+    arm_scene: ArmScene = field(default_factory=ArmScene)
+    walking: WalkingLimits | None = None
+    grasp: GraspLimits | None = None
+
+    def __post_init__(self) -> None:
+        if self.arm_scene.grippers and self.grasp is None:
+            raise ValueError(f"robot {self.name!r} has grippers ({', '.join(self.arm_scene.grippers)}) but no grasp limits")
+        if self.walking is not None and not self.floating_base:
+            raise ValueError(f"robot {self.name!r} has walking limits but no floating base")
 
     @property
     def physics_timestep(self) -> float:

@@ -23,7 +23,6 @@ from sim_bridge.state import Pose
 
 MAX_LINEAR_SPEED = 2.0  # [m/s]
 MAX_ANGULAR_SPEED = 2.0 * math.pi  # [rad/s]
-MAX_GRIPPER_FORCE = 70.0  # [N] per finger, the finger actuators' force limit
 MIN_JERK_PEAK = 1.875  # peak / mean speed of a minimum-jerk profile
 
 
@@ -183,7 +182,7 @@ class ArmController:
         Args:
             arm: arm name with a gripper.
             width_m: distance between the fingers [m], in [0, open width].
-            force_n: squeeze force per finger [N], in (0, 70].
+            force_n: squeeze force per finger [N], in (0, ``robot.grasp.max_force_n``] (70 N on the Panda).
 
         Raises:
             UnknownNameError: unknown arm.
@@ -196,8 +195,11 @@ class ArmController:
         open_width = self.kinematics.scene.gripper_open_width
         if not (math.isfinite(width_m) and 0.0 <= width_m <= open_width + 1e-9):
             raise InvalidGoalError(f"gripper width must be in [0, {open_width}] m, got {width_m}")
-        if not (math.isfinite(force_n) and 0.0 < force_n <= MAX_GRIPPER_FORCE):
-            raise InvalidGoalError(f"gripper force must be in (0, {MAX_GRIPPER_FORCE}] N, got {force_n}")
+        grasp = self.robot.grasp
+        if grasp is None:  # RobotSpec refuses grippers without grasp limits; this tells the type checker
+            raise SimError(f"robot {self.robot.name!r} has grippers but no grasp limits")
+        if not (math.isfinite(force_n) and 0.0 < force_n <= grasp.max_force_n):
+            raise InvalidGoalError(f"gripper force must be in (0, {grasp.max_force_n}] N, got {force_n}")
         state = self._state[arm]
         state.gripper_active, state.gripper_width, state.gripper_force = True, float(width_m), float(force_n)
 

@@ -18,8 +18,7 @@ import mink
 import mujoco
 import numpy as np
 
-from robot_models import RobotSpec
-from sim_bridge.arm.scene import ArmSceneConfig, scene_config
+from robot_models import ArmScene, RobotSpec
 from sim_bridge.arm.types import ArmControllerConfig, IKResult
 from sim_bridge.errors import InvalidGoalError, SimError, UnknownNameError
 from sim_bridge.state import Pose
@@ -132,7 +131,7 @@ def _reach(model: mujoco.MjModel, joints: Sequence[str], site: str, qpos: np.nda
     return float(sum(np.linalg.norm(b - a) for a, b in itertools.pairwise(points)))
 
 
-def arm_infos(robot: RobotSpec, scene: ArmSceneConfig) -> dict[str, ArmInfo]:
+def arm_infos(robot: RobotSpec, scene: ArmScene) -> dict[str, ArmInfo]:
     """Every arm of the robot (one per end-effector site), resolved to indices."""
     model = robot.model
     key_qpos = model.key(robot.default_keyframe).qpos.copy()
@@ -178,7 +177,7 @@ def _subtree_bodies(model: mujoco.MjModel, root: int) -> list[int]:
     return bodies
 
 
-def _arm_and_obstacle_geoms(model: mujoco.MjModel, scene: ArmSceneConfig, info: ArmInfo) -> tuple[list[int], list[int]]:
+def _arm_and_obstacle_geoms(model: mujoco.MjModel, scene: ArmScene, info: ArmInfo) -> tuple[list[int], list[int]]:
     """The arm link geoms checked for collisions (from ``scene.collision_from_joint`` on) and the obstacle geoms."""
     obstacle_geoms = [model.geom(name).id for name in scene.obstacle_geoms]
     for body_name in scene.obstacle_bodies:
@@ -190,7 +189,7 @@ def _arm_and_obstacle_geoms(model: mujoco.MjModel, scene: ArmSceneConfig, info: 
     return arm_geoms, obstacle_geoms
 
 
-def build_collision_model(robot: RobotSpec, scene: ArmSceneConfig, infos: dict[str, ArmInfo]) -> mujoco.MjModel:
+def build_collision_model(robot: RobotSpec, scene: ArmScene, infos: dict[str, ArmInfo]) -> mujoco.MjModel:
     """The robot's model, recompiled with the arm and obstacle geoms colliding if they are visual-only.
 
     Compiling them as colliding geoms (rather than flipping ``geom_contype`` in a compiled model)
@@ -222,7 +221,7 @@ def build_collision_model(robot: RobotSpec, scene: ArmSceneConfig, infos: dict[s
 
 
 def build_ik_model(
-    base: mujoco.MjModel, scene: ArmSceneConfig, info: ArmInfo,
+    base: mujoco.MjModel, scene: ArmScene, info: ArmInfo,
 ) -> tuple[mujoco.MjModel, list[tuple[list[int], list[int]]]]:
     """A private copy of the model for one arm's IK, and that arm's collision pairs.
 
@@ -647,7 +646,7 @@ class ArmKinematics:
     def __init__(self, robot: RobotSpec, config: ArmControllerConfig | None = None) -> None:
         self.robot = robot
         self.config = config or ArmControllerConfig()
-        self.scene = scene_config(robot)
+        self.scene = robot.arm_scene
         self.arms = arm_infos(robot, self.scene)
         self.posture_qpos = robot.model.key(robot.default_keyframe).qpos.copy()
         self.tracking: dict[str, IKProblem] = {}

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
+
 import mujoco
 import numpy as np
 import pytest
 
 import robot_models
-from robot_models import g1_constants as g1_names
+from robot_models import g1_constants as g1_names, panda_constants as panda_names
 from sim_bridge import Simulation
 
 HOLD_SECONDS = 10.0
@@ -101,3 +104,39 @@ def test_g1_course_scene_has_static_obstacles_and_unknown_scenes_are_refused():
     assert robot_models.load("g1").obstacles == ()
     with pytest.raises(robot_models.UnknownSceneError, match="open, course"):
         robot_models.load("g1", "moon")
+
+
+def test_skill_limits_live_on_the_spec():
+    g1, panda = robot_models.load("g1"), robot_models.load("panda")
+    assert g1.walking is not None and panda.walking is None, "only the legged robot walks"
+    assert g1.walking.speed_range_mps == (0.05, 0.6)
+    assert g1.walking.speed_range_mps[0] <= g1.walking.default_speed_mps <= g1.walking.speed_range_mps[1]
+    assert g1.walking.max_walk_distance_m == 100.0
+    assert g1.walking.fall_height_m == 0.45
+    assert g1.walking.fall_tilt_rad == pytest.approx(math.radians(50.0))
+    assert panda.grasp is not None and g1.grasp is None, "only the Panda has grippers"
+    assert panda.grasp.max_force_n == 70.0
+    assert 0.0 < panda.grasp.default_force_n <= panda.grasp.max_force_n
+    for finger in panda.arm_scene.grippers["arm"]:
+        assert panda.model.actuator(finger).forcerange[1] == panda.grasp.max_force_n, "the actuators' force limit"
+    with pytest.raises(ValueError, match="default <= high"):
+        robot_models.WalkingLimits(speed_range_mps=(0.05, 0.6), default_speed_mps=0.8, max_walk_distance_m=1.0,
+                                   fall_height_m=0.4, fall_tilt_rad=1.0)
+    with pytest.raises(ValueError, match="default <= max"):
+        robot_models.GraspLimits(max_force_n=10.0, default_force_n=20.0)
+
+
+def test_arm_facts_live_on_the_spec():
+    panda = robot_models.load("panda")
+    assert panda.arm_scene.grippers == {"arm": panda_names.FINGER_JOINTS}
+    assert panda.arm_scene.gripper_open_width == pytest.approx(2 * panda_names.FINGER_OPEN)
+    assert panda.arm_scene.obstacle_geoms == (panda_names.TABLE_GEOM,)
+    assert panda.arm_scene.objects_table_top_z == panda_names.TABLE_TOP_Z
+    assert panda.arm_scene.object_half_size == panda_names.BOX_HALF_SIZE
+    assert panda.arm_scene.table_xy_bounds == pytest.approx((0.0, 0.9, -0.55, 0.55))
+    g1 = robot_models.load("g1")
+    assert g1.arm_scene.grippers == {} and g1.arm_scene.make_visuals_collide
+    must_avoid = {g1_names.ROOT_BODY, g1_names.TORSO_BODY, "left_knee_link", "right_ankle_roll_link"}
+    assert must_avoid <= set(g1.arm_scene.obstacle_bodies)
+    with pytest.raises(ValueError, match="no grasp limits"):
+        dataclasses.replace(panda, grasp=None)
