@@ -21,7 +21,7 @@ import numpy as np
 import robot_models
 from sim_bridge import Simulation, Slot
 from sim_bridge.locomotion import LocomotionMode, WalkingController
-from sim_bridge.navigation import NoPathError, PathFollower, grid_from_obstacles, plan_path
+from sim_bridge.navigation import NoPathError, OccupancyGrid, PathFollower, grid_from_obstacles, plan_path
 from sim_bridge.navigation.planner import path_length
 
 COMMAND_PERIOD_S = 0.05
@@ -34,7 +34,9 @@ def pose_of(sim: Simulation) -> tuple[float, float, float]:
     return float(base.position[0]), float(base.position[1]), math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 
-def navigate(sim: Simulation, walker: WalkingController, grid, goal: tuple[float, float, float], speed: float) -> dict:
+def navigate(
+    sim: Simulation, walker: WalkingController, grid: OccupancyGrid, goal: tuple[float, float, float], speed: float
+) -> dict:
     sim.reset()
     path = plan_path(grid, (0.0, 0.0), goal[:2])
     follower = PathFollower(path, goal[2])
