@@ -35,9 +35,12 @@ PYTEST_PARALLEL := $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --dist l
 
 # The lint and type gate (configured in pyproject.toml); `make test` runs it first and stops when it fails.
 # Its tools come from requirements.txt with the set-up; mypy checks against the installed project.
+# Both run, so one pass shows every finding; the target fails if either found something.
 lint: $(STAMPS)/project
-	$(VENV)/bin/ruff check .
-	$(VENV)/bin/mypy
+	@status=0; \
+	echo "ruff check ."; $(VENV)/bin/ruff check . || status=1; \
+	echo "mypy"; $(VENV)/bin/mypy || status=1; \
+	exit $$status
 
 test: setup lint
 	$(PY) -m pytest $(PYTEST_PARALLEL)
