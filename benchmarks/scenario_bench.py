@@ -44,9 +44,9 @@ def main() -> None:
     robot = robot_models.load(scenario.robot, scenario.scene)
     ros_ratios, core_ratios = [], []
     print(f"{options.scenario} through ROS (lock-step, MCAP on, video off) against the core walk, wall/sim")
-    with tempfile.TemporaryDirectory(prefix="scenario_bench-") as out:
+    with tempfile.TemporaryDirectory(prefix="scenario_bench-") as out, open(os.devnull, "w") as quiet:
         for round_ in range(options.rounds):
-            result = run(scenario, RunOptions(record=True, out=pathlib.Path(out), quiet=True), stream=open(os.devnull, "w"))
+            result = run(scenario, RunOptions(record=True, out=pathlib.Path(out), quiet=True), stream=quiet)
             if not result.passed:
                 print(f"  round {round_ + 1}: the scenario FAILED: {result.failures}")
                 continue
