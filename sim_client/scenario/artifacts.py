@@ -44,7 +44,7 @@ def _read_interface(full_name: str) -> str:
             base, _, part = name.rpartition("_")
             action_file = share / package / "action" / f"{base}.action"
             if action_file.exists():
-                goal, result, feedback = (re.split(r"^---\s*$", action_file.read_text(), flags=re.MULTILINE) + ["", ""])[:3]
+                goal, result, feedback = [*re.split(r"^---\s*$", action_file.read_text(), flags=re.MULTILINE), "", ""][:3]
                 if part == "Goal":
                     return goal
                 if part == "Result":

@@ -31,7 +31,8 @@ def main(argv: list[str] | None = None) -> int:
     check.add_argument("files", nargs="*")
     run = sub.add_parser("run", help="run a scenario by name or file")
     run.add_argument("scenario", help="name in scenarios/ or a .yaml path")
-    run.add_argument("--rtf", type=float, default=None, help="real-time factor; 0 = lock-stepped as fast as possible (default: the file's)")
+    run.add_argument("--rtf", type=float, default=None,
+                     help="real-time factor; 0 = lock-stepped as fast as possible (default: the file's)")
     run.add_argument("--record", action="store_true", help="write an MCAP of every topic")
     run.add_argument("--video", action="store_true", help="render an MP4 from the track camera")
     run.add_argument("--plots", action="store_true", help="plot what the expectations check")

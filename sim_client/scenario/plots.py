@@ -60,6 +60,8 @@ def make_plots(run: Any, folder: pathlib.Path) -> list[pathlib.Path]:
         axes[1].set_ylabel("base height [m]")
         axes[1].legend(fontsize=7)
         p0 = odom.at(start)
+        if p0 is None:  # no /odom sample (len(odom.t) > 2 above, so not reached)
+            p0 = odom.values[0]
         travelled = np.hypot(odom.values[:, 0] - p0[0], odom.values[:, 1] - p0[1])
         axes[2].plot(t, travelled, label="planar distance from start")
         axes[2].set_ylabel("distance [m]")
@@ -108,7 +110,7 @@ def make_plots(run: Any, folder: pathlib.Path) -> list[pathlib.Path]:
             continue
         fig, axes = plt.subplots(len(fields), 1, figsize=(8, 2.0 * len(fields) + 1), sharex=True, squeeze=False)
         t = np.array([s.sim_time for s in history]) - start
-        for ax, name in zip(axes[:, 0], fields):
+        for ax, name in zip(axes[:, 0], fields, strict=True):
             values = [float(getattr(s.feedback, name)) for s in history]
             ax.plot(t, [v if math.isfinite(v) else np.nan for v in values], ".-", ms=3)
             ax.set_ylabel(name, fontsize=8)

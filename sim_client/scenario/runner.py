@@ -25,14 +25,26 @@ from sensor_msgs.msg import JointState
 from sim_client.actions import ACTION_CLIENTS, GoalHandle, ParameterError, Parameters, _ActionClientBase, push_request
 from sim_client.processes import running
 from sim_client.scenario import artifacts
-from sim_client.scenario.schema import (
-    CancelStep, CmdVelStep, Comparison, Condition, Expectation, Measure, PushStep, ResetStep, Scenario, SendGoalStep,
-    SetParamStep, Step, WaitStep,
+from sim_client.scenario.registry import (
+    ACTIONS,
+    CancelStep,
+    CmdVelStep,
+    Comparison,
+    Condition,
+    Measure,
+    PushStep,
+    ResetStep,
+    SendGoalStep,
+    SetParamStep,
+    Step,
+    WaitStep,
+    describe_step,
+    step_kind,
 )
+from sim_client.scenario.schema import Expectation, Scenario
 from sim_client.session import RosSession, WaitTimeout
 from sim_interfaces.msg import ObjectStates
-from sim_interfaces.srv import Push, Reset
-from sim_interfaces.srv import Step as StepSrv
+from sim_interfaces.srv import Push, Reset, Step as StepSrv
 
 CHUNK_S = 0.02  # sim time advanced between checks [s]
 STARTUP_WALL_S = 90.0
@@ -92,14 +104,6 @@ def _fmt(value: Any) -> str:
     if isinstance(value, float):
         return f"{value:.4g}"
     return str(value)
-
-
-def _field(obj: Any, path: str) -> Any:
-    for part in path.split("."):
-        if obj is None:
-            return None
-        obj = getattr(obj, part, None)
-    return obj
 
 
 class _Progress:
@@ -203,7 +207,7 @@ class ScenarioRun:
             client = ACTION_CLIENTS[action](self.session)
             try:
                 client.wait_for_server(SERVICE_WALL_S)
-            except Exception as error:
+            except Exception as error:  # noqa: BLE001 - any failure to reach a server ends the run as a StepFailure
                 raise StepFailure(f"{error}") from None
             self.clients[action] = client
         if self.lock_step:
@@ -255,7 +259,8 @@ class ScenarioRun:
         total = len(self.scenario.steps)
         bar_len = 20
         filled = int(bar_len * self._step_index / max(total, 1))
-        text = f"[{'#' * filled}{'.' * (bar_len - filled)}] step {self._step_index}/{total} {self._step_label}  t={self._elapsed():6.2f} s"
+        bar = f"[{'#' * filled}{'.' * (bar_len - filled)}]"
+        text = f"{bar} step {self._step_index}/{total} {self._step_label}  t={self._elapsed():6.2f} s"
         for goal_id, handle in self.goals.items():
             if not handle.done and handle.feedback is not None:
                 text += f"  {goal_id}: {_feedback_summary(handle.feedback)}"
@@ -265,7 +270,7 @@ class ScenarioRun:
     def run_steps(self) -> None:
         for index, step in enumerate(self.scenario.steps):
             self._step_index = index + 1
-            self._step_label = _describe_step(step)
+            self._step_label = describe_step(step)
             if step.mark:
                 self.marks[step.mark] = self.now()
             self.progress.say(f"  [{index + 1}/{len(self.scenario.steps)}] t={self._elapsed():6.2f} s  {self._step_label}")
@@ -274,38 +279,35 @@ class ScenarioRun:
                 raise StepFailure(f"the scenario ran past its timeout of {self.scenario.timeout:g} s of sim time")
 
     def _run_step(self, step: Step) -> None:
-        if isinstance(step, ResetStep):
-            self._do_reset(step.keyframe or self.scenario.keyframe)
-        elif isinstance(step, WaitStep):
-            if step.duration is not None:
-                self._wait_sim(step.duration)
-            elif step.until is not None:
-                condition = step.until
-                self._wait_until(lambda: self._condition_holds(condition), step.timeout, f"until {condition.describe()}",
-                                 step.line)
-            else:
-                goal_id = step.goal
-                assert goal_id is not None
-                self._wait_until(lambda: self.goals[goal_id].done, step.timeout, f"for goal {goal_id} to end", step.line)
-        elif isinstance(step, SendGoalStep):
-            self._send_goal(step)
-        elif isinstance(step, CancelStep):
-            handle = self.goals[step.goal]
-            accepted = handle.cancel()
-            self.progress.say(f"        cancel {step.goal}: {'accepted' if accepted else 'not accepted (goal already ended?)'}")
-        elif isinstance(step, SetParamStep):
-            self._set_param(step)
-        elif isinstance(step, CmdVelStep):
-            self._cmd_vel_for(step)
-        elif isinstance(step, PushStep):
-            self._push_body(step)
+        """Carry out one step with the method its kind names in the registry (``StepKind.run``)."""
+        run: Callable[[Step], None] = getattr(self, step_kind(step).run)
+        run(step)
+
+    def _run_reset(self, step: ResetStep) -> None:
+        self._do_reset(step.keyframe or self.scenario.keyframe)
+
+    def _run_wait(self, step: WaitStep) -> None:
+        if step.duration is not None:
+            self._wait_sim(step.duration)
+        elif step.until is not None:
+            condition = step.until
+            self._wait_until(lambda: self._condition_holds(condition), step.timeout, f"until {condition.describe()}",
+                             step.line)
+        elif step.goal is not None:
+            goal_id = step.goal
+            self._wait_until(lambda: self.goals[goal_id].done, step.timeout, f"for goal {goal_id} to end", step.line)
+
+    def _run_cancel(self, step: CancelStep) -> None:
+        handle = self.goals[step.goal]
+        accepted = handle.cancel()
+        self.progress.say(f"        cancel {step.goal}: {'accepted' if accepted else 'not accepted (goal already ended?)'}")
 
     def _push_body(self, step: PushStep) -> None:
         response = self._call(self._push, push_request(step.body, step.force, step.torque, step.duration), "/sim/push")
         wanted = "refused" if step.refused else "applied"
         got = "applied" if response.success else "refused"
         self.progress.say(f"        push: {got}: {response.message}")
-        self.param_verdicts.append(Verdict(f"{_describe_step(step)} is {wanted}", got == wanted, wanted, got,
+        self.param_verdicts.append(Verdict(f"{describe_step(step)} is {wanted}", got == wanted, wanted, got,
                                            detail=response.message, line=step.line))
 
     def _do_reset(self, keyframe: str) -> None:
@@ -372,8 +374,9 @@ class ScenarioRun:
             self._check_wall()
         self._cmd_vel.publish(Twist())
 
-    # ----- measures --------------------------------------------------------------------
-    def _mark(self, name: str | None, default: str) -> float:
+    # ----- what measures read (registry.Recorded) -------------------------------------------
+    def mark_time(self, name: str | None, default: str) -> float:
+        """Sim time [s] of mark ``name`` (``default`` when None); ``end`` is now until the run ends."""
         key = name or default
         if key == "end" and "end" not in self.marks:
             return self.now()
@@ -381,66 +384,27 @@ class ScenarioRun:
             raise KeyError(f"mark {key!r} was not reached")
         return self.marks[key]
 
+    def odom_series(self) -> artifacts.Series:
+        return artifacts.odom_series(self.odom.messages())
+
+    def object_series(self, name: str) -> artifacts.Series:
+        return artifacts.object_series(self.objects.messages(), name)
+
+    def joint_series(self) -> tuple[list[str], artifacts.Series]:
+        return artifacts.joint_series(self.joints.messages())
+
+    def goal_handle(self, goal_id: str) -> GoalHandle[Any, Any] | None:
+        return self.goals.get(goal_id)
+
+    def parameter(self, node: str, name: str) -> Any:
+        try:
+            return Parameters(self.session, node).get(name)
+        except (ParameterError, WaitTimeout):
+            return None
+
     def measure(self, measure: Measure) -> Any:
         """The value of a measure now (or at its marks); None when it cannot be measured."""
-        a = measure.args
-        kind = measure.kind
-        if kind in ("base_displacement", "mean_speed", "base_height_min", "duration"):
-            t0, t1 = self._mark(a.get("from"), "start"), self._mark(a.get("to"), "end")
-            if kind == "duration":
-                return t1 - t0
-            odom = artifacts.odom_series(self.odom.messages())
-            if kind == "base_height_min":
-                window = odom.window(t0, t1)
-                return float(window.values[:, 2].min()) if len(window.t) else None
-            p0, p1 = odom.at(t0), odom.at(t1)
-            if p0 is None or p1 is None:
-                return None
-            distance = float(math.hypot(p1[0] - p0[0], p1[1] - p0[1]))
-            if kind == "base_displacement":
-                return distance
-            return distance / (t1 - t0) if t1 > t0 else None
-        if kind == "base_position":
-            pose = artifacts.odom_series(self.odom.messages()).at(self._mark(a.get("at"), "end"))
-            return None if pose is None else float(pose[{"x": 0, "y": 1, "z": 2, "yaw": 3}[a["axis"]]])
-        if kind in ("object_distance", "object_position"):
-            pose = artifacts.object_series(self.objects.messages(), a["object"]).at(self._mark(a.get("at"), "end"))
-            if pose is None:
-                return None
-            if kind == "object_position":
-                return float(pose[{"x": 0, "y": 1, "z": 2}[a["axis"]]])
-            return float(math.dist(pose[0:3], a["target"]))
-        if kind == "joint_position":
-            names, series = artifacts.joint_series(self.joints.messages())
-            row = series.at(self._mark(a.get("at"), "end"))
-            if row is None or a["joint"] not in names:
-                return None
-            return float(row[names.index(a["joint"])])
-        if kind == "parameter":
-            try:
-                return Parameters(self.session, a["node"]).get(a["name"])
-            except (ParameterError, WaitTimeout):
-                return None
-        handle = self.goals.get(a.get("goal", ""))
-        if handle is None:
-            return None
-        if kind == "feedback":
-            values = [_field(s.feedback, a["field"]) for s in handle.feedback_history]
-            if a["reduce"] == "count":
-                return len(values)
-            numbers = [float(v) for v in values if isinstance(v, (int, float))]
-            if not numbers:
-                return None
-            return {"last": numbers[-1], "max": max(numbers), "min": min(numbers)}[a["reduce"]]
-        outcome = handle.outcome()
-        if outcome is None:
-            return None
-        if kind == "status":
-            return outcome.status
-        if kind == "error_code":
-            return outcome.error_name
-        value = _field(outcome.result, a["field"])
-        return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else value
+        return measure.evaluate(self)
 
     def _condition_holds(self, condition: Condition | None) -> bool:
         if condition is None:
@@ -463,7 +427,8 @@ class ScenarioRun:
                   and (expectation.outcome_error is None or outcome.error_name == expectation.outcome_error))
             measured = f"{outcome.status} / {outcome.error_name}"
             return Verdict(expectation.name, ok, expected, measured, detail=outcome.error_msg, line=expectation.line)
-        assert expectation.measure is not None and expectation.comparison is not None
+        if expectation.measure is None or expectation.comparison is None:
+            raise ValueError(f"expectation {expectation.name!r} has neither an outcome nor a measure")  # the schema forbids it
         try:
             value = self.measure(expectation.measure)
             detail = ""
@@ -536,7 +501,7 @@ class ScenarioRun:
                         while not handle.done and time.monotonic() < deadline:
                             self._step_sim(max(1, round(CHUNK_S / self._control_dt)))
                     else:
-                        self.session.wait_for(lambda: handle.done, 10.0, f"goal {goal_id} to end after cancel")
+                        self.session.wait_for(lambda: handle.done, 10.0, f"goal {goal_id} to end after cancel")  # noqa: B023 - called at once
                 except (StepFailure, WaitTimeout):
                     pass
 
@@ -567,7 +532,7 @@ class ScenarioRun:
             "seed": self.scenario.seed,
             "mode": "lock-step" if self.lock_step else "free-run",
             "real_time_factor": self.rtf,
-            "started": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+            "started": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
             "passed": result.passed,
             "startup_wall_s": round(result.startup_time, 3),
             "wall_time_s": round(result.wall_time, 3),
@@ -584,41 +549,8 @@ class ScenarioRun:
 
 # ----- goals from scenario data -------------------------------------------------------------
 def _make_goal(action: str, g: dict[str, Any]) -> Any:
-    client = ACTION_CLIENTS[action]
-    if action == "walk":
-        return client.goal(g["distance"], g["speed"], g["timeout"])
-    if action == "navigate":
-        return client.goal(g["x"], g["y"], g["yaw"], g["frame"])
-    if action == "move_arm":
-        return client.goal(*g["position"], rpy=g["rpy"], arm=g["arm"], position_tolerance=g["position_tolerance"],
-                           orientation_tolerance=g["orientation_tolerance"],
-                           max_velocity_scaling=g["max_velocity_scaling"], timeout=g["timeout"], frame=g["frame"])
-    return client.goal(g["object"], g["place"], arm=g["arm"], timeout=g["timeout"])
-
-
-def _describe_step(step: Step) -> str:
-    if isinstance(step, ResetStep):
-        return f"reset{' to ' + step.keyframe if step.keyframe else ''}"
-    if isinstance(step, WaitStep):
-        if step.duration is not None:
-            return f"wait {step.duration:g} s"
-        if step.until is not None:
-            return f"wait until {step.until.describe()}"
-        return f"wait for goal {step.goal}"
-    if isinstance(step, SendGoalStep):
-        goal = ", ".join(f"{k}={v}" for k, v in step.goal.items() if v not in (None, "", 0.0) and k != "arm_known")
-        extra = f", cancel {step.cancel.describe()}" if step.cancel else ""
-        return f"send {step.action} goal {step.id} ({goal}){'' if step.wait else ' without waiting'}{extra}"
-    if isinstance(step, CancelStep):
-        return f"cancel goal {step.goal}"
-    if isinstance(step, SetParamStep):
-        return f"set {step.node} {step.name} = {step.value!r}{' (must be refused)' if step.refused else ''}"
-    if isinstance(step, CmdVelStep):
-        return f"/cmd_vel vx={step.vx:g} vy={step.vy:g} wz={step.wz:g} for {step.duration:g} s"
-    if isinstance(step, PushStep):
-        torque = f" torque {list(step.torque)} N m" if any(step.torque) else ""
-        return f"push {step.body or 'the base'} with {list(step.force)} N{torque} for {step.duration:g} s"
-    return type(step).__name__
+    """The goal message of ``action`` from the goal fields of a send_goal step (``ActionKind.make_goal``)."""
+    return ACTIONS[action].make_goal(ACTION_CLIENTS[action], g)
 
 
 def _feedback_summary(feedback: Any) -> str:
@@ -671,7 +603,7 @@ def run(scenario: Scenario, options: RunOptions = RunOptions(), stream: TextIO =
 
 def _write_artifacts(run_: ScenarioRun, result: RunResult, stream: TextIO) -> None:
     folder = result.folder
-    paths: dict[str, str] = {}
+    paths: dict[str, str | list[str]] = {}  # artifact kind -> path; "plots" -> a list of paths
     if run_.mcap is not None:
         run_.mcap.close()
         paths["mcap"] = str(run_.mcap.path)
@@ -681,9 +613,9 @@ def _write_artifacts(run_: ScenarioRun, result: RunResult, stream: TextIO) -> No
         from sim_client.scenario import plots
 
         try:
-            for path in plots.make_plots(run_, folder):
-                paths.setdefault("plots", [])  # type: ignore[arg-type]
-                paths["plots"].append(str(path))  # type: ignore[attr-defined]
+            plot_paths = [str(plot) for plot in plots.make_plots(run_, folder)]
+            if plot_paths:
+                paths["plots"] = plot_paths
         except Exception as error:  # noqa: BLE001 - an artifact failing must not hide the verdicts
             result.report.setdefault("artifact_errors", []).append(f"plots: {type(error).__name__}: {error}")
     if run_.options.video and end > start:
@@ -694,7 +626,7 @@ def _write_artifacts(run_: ScenarioRun, result: RunResult, stream: TextIO) -> No
                                    artifacts.joint_series(run_.joints.messages()), objects, start, end,
                                    folder / "video.mp4")
             paths["video"] = str(folder / "video.mp4")
-        except Exception as error:  # noqa: BLE001
+        except Exception as error:  # noqa: BLE001 - an artifact failing must not hide the verdicts
             result.report.setdefault("artifact_errors", []).append(f"video: {type(error).__name__}: {error}")
     paths["report"] = str(folder / "report.json")
     result.report["artifacts"] = paths
@@ -705,8 +637,8 @@ def _write_artifacts(run_: ScenarioRun, result: RunResult, stream: TextIO) -> No
         stream.write(f"\n{result.scenario}: {verdict}  ({sum(v.passed for v in result.verdicts)}/{len(result.verdicts)} "
                      f"expectations; start-up {result.startup_time:.1f} s, then wall {result.wall_time:.1f} s for sim "
                      f"{result.sim_time:.1f} s: wall/sim {ratio})\n")
-        for kind, path in paths.items():
-            stream.write(f"  {kind}: {path}\n")
-        for error in result.report.get("artifact_errors", []):
-            stream.write(f"  artifact error: {error}\n")
+        for kind, written in paths.items():
+            stream.write(f"  {kind}: {written}\n")
+        for problem in result.report.get("artifact_errors", []):
+            stream.write(f"  artifact error: {problem}\n")
         stream.flush()

@@ -5,6 +5,7 @@ from __future__ import annotations
 import pathlib
 import textwrap
 
+import numpy as np
 import pytest
 
 from sim_client.scenario import schema
@@ -43,7 +44,7 @@ def test_every_shipped_scenario_validates(path):
     scenario = schema.load(path)
     assert scenario.name == path.stem
     assert scenario.expectations, "a scenario without expectations judges nothing"
-    assert scenario.robot in schema.ROBOTS
+    assert scenario.robot in schema.ROBOT_NAMES
 
 
 def test_a_good_file_loads_into_typed_values(tmp_path):
@@ -79,6 +80,18 @@ def test_a_good_file_loads_into_typed_values(tmp_path):
                       "    measure: {duration: {from: nowhere}}"), 7, "unknown mark 'nowhere'"),
         (GOOD.replace("robot: panda", "robot: [panda"), 3, "not valid YAML"),  # where the parser notices
         ("robot: g1\nrobot: panda\n", 2, "duplicate key 'robot'"),
+        (GOOD.replace("robot: panda", "robot: panda\nscene: course"), 3, "unknown scene 'course' for panda; scenes: table"),
+        (GOOD.replace("    measure: {object_position: {object: box_0, axis: z}}",
+                      "    measure: {base_displacement: {}}"), 7, "needs a walking robot; panda has a fixed base"),
+        (GOOD.replace("  - wait: {duration: 0.5}", "  - cmd_vel: {vx: 0.1, duration: 1}"), 4, "robot panda has none"),
+        (GOOD.replace("  - wait: {duration: 0.5}",
+                      "  - send_goal: {id: p, action: pick_place, goal: {object: box_0, place: [0, 0, 0]}}")
+         + "  - name: fell\n    outcome: {goal: p, error_code: FELL}\n", 10,
+         "pick_place has no error code 'FELL'; it has: SUCCESS"),
+        (GOOD.replace("    measure: {object_position: {object: box_0, axis: z}}", "    measure: {feedback: {field: x}}"), 7,
+         "measure feedback: missing required key 'goal'"),
+        (GOOD.replace("  - wait: {duration: 0.5}", "  - wait: {durration: 0.5}"), 4,
+         "unknown key 'durration'; allowed: duration, goal, timeout, until"),
         (GOOD.replace("steps:\n", "steps:\n  - wait: {duration: 1}\n    mark: a\n  - wait: {duration: 1}\n    mark: a\n"), 6,
          "mark 'a' is defined twice"),
     ],
@@ -92,20 +105,68 @@ def test_errors_name_the_file_and_line_and_what_is_wrong(tmp_path, text, line, m
     assert message in text_of_error
 
 
-def test_the_schema_tables_agree_with_the_robot_models():
+def test_robot_facts_and_error_codes_come_from_their_sources_not_copies():
     import robot_models
+    from sim_client.scenario import registry, robots
+    from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, Walk
 
-    for name, table in schema.ROBOTS.items():
-        robot = robot_models.load(name)
-        assert tuple(robot.keyframes) == table["keyframes"]
-        assert robot.scene == table["scenes"][0], "the first scene listed is the robot's default"
-        for scene in table["scenes"]:
-            assert robot_models.load(name, scene).scene == scene
-        assert tuple(robot.objects) == table["objects"]
-        assert set(robot.end_effector_sites) == set(table["arms"])
+    assert robots.ROBOT_NAMES == robot_models.ROBOT_NAMES
+    for name in robot_models.ROBOT_NAMES:
+        spec, facts = robot_models.load(name), robots.robot_facts(name)
+        assert facts.keyframes == tuple(spec.keyframes) and facts.objects == tuple(spec.objects)
+        assert facts.default_scene == spec.scene and facts.arms == tuple(spec.end_effector_sites)
+    assert registry.actions_of(robots.robot_facts("g1")) == ("walk", "navigate", "move_arm")
+    assert registry.actions_of(robots.robot_facts("panda")) == ("move_arm", "pick_place")
+    for action, action_type in (("walk", Walk), ("navigate", NavigateToPose), ("move_arm", MoveArm), ("pick_place", PickPlace)):
+        names = registry.ACTIONS[action].error_names
+        assert names[0] == "SUCCESS" and "INVALID_GOAL" in names
+        assert all(getattr(action_type.Result, n) == i for i, n in enumerate(names)), "error codes in value order"
+    assert "GOAL_IN_OBSTACLE" in registry.ACTIONS["navigate"].error_names
+    assert "PLACEMENT_FAILED" in registry.ACTIONS["pick_place"].error_names
+
+
+def test_every_step_kind_names_a_runner_method_and_every_kind_is_described():
+    from sim_client.scenario import registry
+    from sim_client.scenario.runner import ScenarioRun
+
+    for kind in registry.STEPS.values():
+        assert callable(getattr(ScenarioRun, kind.run, None)), f"step {kind.name}: ScenarioRun has no method {kind.run}"
+        assert registry.step_kind(kind.type(line=1, mark=None)) is kind
+    for kind in registry.MEASURES.values():
+        assert kind.about and callable(kind.evaluate), kind.name
+    for path in SHIPPED:
+        for step in schema.load(path).steps:
+            assert registry.describe_step(step)
+
+
+def test_a_measure_evaluates_on_recorded_data_alone():
+    from sim_client.scenario import fields, registry
+    from sim_client.scenario.artifacts import Series
+
+    class Recorded:
+        def mark_time(self, name, default):
+            marks = {"start": 0.0, "end": 2.0, "half": 1.0}
+            if (name or default) not in marks:
+                raise KeyError(f"mark {name or default!r} was not reached")
+            return marks[name or default]
+
+        def odom_series(self):
+            t = np.array([0.0, 1.0, 2.0])
+            return Series(t, np.array([[0.0, 0.0, 0.7, 0.0], [0.3, 0.4, 0.6, 0.1], [1.0, 0.0, 0.75, 0.2]]))
+
+    recorded = Recorded()
+    ctx = fields.Ctx("<test>")
+    measure = registry.parse_measure(ctx, {"base_displacement": {"to": "half"}}, 1)
+    assert measure.evaluate(recorded) == pytest.approx(0.5)
+    assert registry.parse_measure(ctx, "base_height_min", 1).evaluate(recorded) == pytest.approx(0.6)
+    assert registry.parse_measure(ctx, "mean_speed", 1).evaluate(recorded) == pytest.approx(0.5)
+    yaw = registry.parse_measure(ctx, {"base_position": {"axis": "yaw", "at": "half"}}, 1)
+    assert yaw.evaluate(recorded) == pytest.approx(0.1) and yaw.unit == "rad"
+    with pytest.raises(KeyError, match="not reached"):
+        registry.parse_measure(ctx, {"duration": {"from": "later"}}, 1).evaluate(recorded)
 
 
 def test_a_scenario_is_found_by_name_and_unknown_names_list_the_known_ones():
     assert schema.find("walk_2m").name == "walk_2m.yaml"
-    with pytest.raises(schema.ScenarioError, match="known: .*reset_and_stand_g1"):
+    with pytest.raises(schema.ScenarioError, match=r"known: .*reset_and_stand_g1"):
         schema.find("no_such_scenario")
