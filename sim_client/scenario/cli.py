@@ -1,4 +1,5 @@
-"""``scenario list`` and ``scenario run NAME|FILE [--rtf X] [--record] [--video] [--plots] [--out DIR]``."""
+"""``scenario list``, ``scenario kinds``, ``scenario check [FILE...]`` and
+``scenario run NAME|FILE [--rtf X] [--record] [--video] [--plots] [--out DIR]``."""
 
 from __future__ import annotations
 
@@ -23,10 +24,33 @@ def _list() -> int:
     return 0
 
 
+def _kinds() -> int:
+    """What a scenario file may use, from the registry that parses, runs and describes it."""
+    from sim_client.scenario import registry, robots
+
+    print("steps (each may carry mark: NAME):")
+    for step in registry.STEPS.values():
+        print(f"  {step.name:<18} {step.about}")
+    print("measures (in expectations and conditions; marks: start, end, step marks, <goal>.sent, <goal>.done):")
+    for measure in registry.MEASURES.values():
+        keys = ", ".join(key.name + ("" if key.required else "?") for key in measure.keys)
+        unit = f" [{measure.unit}]" if isinstance(measure.unit, str) and measure.unit else ""
+        walking = " (walking robots)" if measure.walking else ""
+        print(f"  {measure.name:<18} {keys:<28} {measure.about}{unit}{walking}")
+    print(f"comparisons: {', '.join(registry.COMPARISONS)} (near with tol or rel_tol)")
+    print("actions (send_goal):")
+    for action in registry.ACTIONS.values():
+        robots_with = [name for name in robots.ROBOT_NAMES if action.available(robots.robot_facts(name))]
+        print(f"  {action.name:<18} goal: {action.fields}")
+        print(f"  {'':<18} robots: {', '.join(robots_with)}; error codes: {', '.join(action.error_names)}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="scenario", description="Run headless scenario files and judge them.")
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("list", help="list the scenarios in scenarios/")
+    sub.add_parser("kinds", help="list the steps, measures and actions a scenario file may use")
     check = sub.add_parser("check", help="validate scenario files")
     check.add_argument("files", nargs="*")
     run = sub.add_parser("run", help="run a scenario by name or file")
@@ -44,6 +68,8 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("MUJOCO_GL", "egl")
     if options.command == "list":
         return _list()
+    if options.command == "kinds":
+        return _kinds()
     if options.command == "check":
         files = [pathlib.Path(f) for f in options.files] or schema.all_files()
         bad = 0

@@ -599,6 +599,7 @@ class StepKind(Generic[S]):
         parse: ``(fields of its mapping, head, robot) -> step``; it calls ``fields.done()`` itself.
         describe: one line for the progress output and verdicts.
         run: the name of the ``ScenarioRun`` method that carries it out (``run(step) -> None``).
+        about: its keys and what it does, for ``scenario kinds``.
         body_optional: ``reset:`` with nothing after it is an empty mapping.
     """
 
@@ -607,6 +608,7 @@ class StepKind(Generic[S]):
     parse: Callable[[Fields, StepHead, RobotFacts], S]
     describe: Callable[[S], str]
     run: str
+    about: str
     body_optional: bool = False
 
 
@@ -714,13 +716,20 @@ def _describe_push(step: PushStep) -> str:
 
 
 _STEP_LIST: tuple[StepKind[Any], ...] = (
-    StepKind("reset", ResetStep, _parse_reset, _describe_reset, "_run_reset", body_optional=True),
-    StepKind("wait", WaitStep, _parse_wait, _describe_wait, "_run_wait"),
-    StepKind("send_goal", SendGoalStep, _parse_send_goal, _describe_send_goal, "_send_goal"),
-    StepKind("cancel", CancelStep, _parse_cancel, lambda step: f"cancel goal {step.goal}", "_run_cancel"),
-    StepKind("set_param", SetParamStep, _parse_set_param, _describe_set_param, "_set_param"),
-    StepKind("cmd_vel", CmdVelStep, _parse_cmd_vel, _describe_cmd_vel, "_cmd_vel_for"),
-    StepKind("push", PushStep, _parse_push, _describe_push, "_push_body"),
+    StepKind("reset", ResetStep, _parse_reset, _describe_reset, "_run_reset",
+             "{keyframe}: /sim/reset to a keyframe (default: the scenario's)", body_optional=True),
+    StepKind("wait", WaitStep, _parse_wait, _describe_wait, "_run_wait",
+             "{duration} sim seconds, or {until: CONDITION, timeout}, or {goal: ID, timeout} until it ends"),
+    StepKind("send_goal", SendGoalStep, _parse_send_goal, _describe_send_goal, "_send_goal",
+             "{id, action, goal, wait, timeout, cancel: {after} or {when: CONDITION}}: an action goal"),
+    StepKind("cancel", CancelStep, _parse_cancel, lambda step: f"cancel goal {step.goal}", "_run_cancel",
+             "{goal: ID}: cancel a goal sent earlier"),
+    StepKind("set_param", SetParamStep, _parse_set_param, _describe_set_param, "_set_param",
+             "{node, name, value, refused}: set a parameter; refused: true = the node must refuse it"),
+    StepKind("cmd_vel", CmdVelStep, _parse_cmd_vel, _describe_cmd_vel, "_cmd_vel_for",
+             "{vx, vy, wz, duration}: publish /cmd_vel [m/s, rad/s] for sim seconds, then zero (walking robots)"),
+    StepKind("push", PushStep, _parse_push, _describe_push, "_push_body",
+             "{body, force, torque, duration, refused}: /sim/push [N, N m, s], world frame; body default: the base"),
 )
 STEPS: dict[str, StepKind[Any]] = {kind.name: kind for kind in _STEP_LIST}
 _STEP_OF_TYPE: dict[type, StepKind[Any]] = {kind.type: kind for kind in _STEP_LIST}

@@ -170,3 +170,14 @@ def test_a_scenario_is_found_by_name_and_unknown_names_list_the_known_ones():
     assert schema.find("walk_2m").name == "walk_2m.yaml"
     with pytest.raises(schema.ScenarioError, match=r"known: .*reset_and_stand_g1"):
         schema.find("no_such_scenario")
+
+
+def test_every_registered_kind_is_documented_and_listed(capsys):
+    from sim_client.scenario import cli, registry
+
+    readme = (schema.SCENARIO_DIR / "README.md").read_text()
+    assert cli.main(["kinds"]) == 0
+    listed = capsys.readouterr().out
+    for name in (*registry.STEPS, *registry.MEASURES, *registry.ACTIONS):
+        assert name in readme, f"{name} is not in scenarios/README.md"
+        assert f"  {name} " in listed, f"{name} is not listed by `scenario kinds`"
