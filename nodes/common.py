@@ -100,10 +100,12 @@ class OnDemandTopic(Generic[MsgT]):
     """
 
     def __init__(self, node: Node, msg_type: Any, topic: str, qos: Any, callback_group: Any,
-                 key: Callable[[MsgT], str] | None = None, linger_s: float = 5.0) -> None:
+                 key: Callable[[MsgT], str] | None = None, linger_s: float = 5.0,
+                 on_message: Callable[[MsgT], None] | None = None) -> None:
         self.latest: Latest[MsgT] = Latest(key=key)
         self._node = node
-        self._args = (msg_type, topic, self.latest.put, qos)
+        self._on_message = on_message
+        self._args = (msg_type, topic, self._take, qos)
         self._group = callback_group
         self._linger_s = linger_s
         self._lock = threading.Lock()
@@ -111,6 +113,11 @@ class OnDemandTopic(Generic[MsgT]):
         self._last_use = 0.0
         self._subscription: Any = None
         self._timer: Any = None
+
+    def _take(self, msg: MsgT) -> None:
+        self.latest.put(msg)
+        if self._on_message is not None:
+            self._on_message(msg)
 
     def _acquire(self) -> None:
         with self._lock:

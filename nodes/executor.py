@@ -17,6 +17,7 @@ that raises is logged with its traceback and the node keeps serving (rclpy re-ra
 
 from __future__ import annotations
 
+import threading
 import traceback
 from typing import Any, cast
 
@@ -32,24 +33,70 @@ from rclpy.executors import (
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.subscription import Subscription
-from rclpy.task import Task
+from rclpy.task import Future, Task
 
 _LOGGER = rclpy.logging.get_logger("executor")
+_running = threading.local()  # the task a pool thread is running (for :func:`wait_parked`)
 
 
 class _QueuedTask(Task):
-    """A task that counts as executing from the moment it is handed to the thread pool."""
+    """A task that counts as executing from the moment it is handed to the thread pool.
+
+    A coroutine task that awaits through :func:`wait_parked` is *parked* meanwhile: rclpy would
+    hand it to a thread again on every turn of the executor (a busy loop for as long as it waits);
+    parked, it is left alone until the future it waits for is done.
+    """
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self.queued = False
+        self.parkable = False
+        self._woken = False
+        self._park_lock = threading.Lock()
+        self._wake_executor: Any = kwargs.get("executor")
 
     def executing(self) -> bool:
         return self.queued or super().executing()
 
     def __call__(self) -> None:
-        self.queued = False  # a coroutine that awaits is yielded again later, as rclpy intends
-        super().__call__()
+        with self._park_lock:
+            self.queued = False  # a coroutine that awaits is yielded again later, as rclpy intends
+            self._woken = False
+        _running.task = self
+        try:
+            super().__call__()
+        finally:
+            _running.task = None
+        with self._park_lock:
+            if self.parkable and not self._woken and not self.done():
+                self.queued = True  # parked until wake()
+
+    def wake(self) -> None:
+        """The future a parked task waits for is done: let the executor run it again."""
+        with self._park_lock:
+            self._woken = True
+            self.queued = False
+        executor = self._wake_executor
+        if executor is not None and executor._guard is not None:
+            executor._guard.trigger()
+
+
+async def wait_parked(future: Future) -> Any:
+    """Await ``future`` from a coroutine callback without keeping the executor busy.
+
+    Use it in ``async`` execute callbacks of :class:`ServerExecutor` nodes: the callback holds no
+    thread while it waits (a server can have any number of goals waiting), and the executor sleeps
+    until the future is done. Elsewhere it is a plain ``await``.
+    """
+    task = getattr(_running, "task", None)
+    if isinstance(task, _QueuedTask) and not future.done():
+        task.parkable = True
+        future.add_done_callback(lambda _future: task.wake())
+    try:
+        return await future
+    finally:
+        if isinstance(task, _QueuedTask):
+            task.parkable = False
 
 
 class ServerExecutor(MultiThreadedExecutor):

@@ -20,9 +20,13 @@ from rclpy.qos import QoSProfile
 
 from nodes.conversions import pose_from_msg, set_pose, set_time
 from nodes.parameters import ParameterSpec, declare
+from nodes.skill_bridge import SkillBridge
+from nodes.skill_protocol import SkillContext
 from sim_bridge import SimError, Simulation, Slot
 from sim_bridge.arm import ArmController, PickPlace, PickPlaceGoal, PickPlaceProgress
 from sim_bridge.locomotion import PARAMETER_RANGES, GaitParameters, LocomotionMode, WalkingController
+from sim_bridge.navigation import grid_from_obstacles
+from sim_bridge.skills import LEGS, SkillHost
 from sim_interfaces.msg import ArmCommand, ArmState, LocomotionState
 
 COMMAND_QOS = QoSProfile(depth=50)
@@ -53,13 +57,20 @@ class InLoopPlugins:
         self._cmd_vel_time = -math.inf
         self._cmd_vel_live = False
         self._warned_no_locomotion = False
+        self._warned_busy = False
         group = ReentrantCallbackGroup()
         node.create_subscription(TwistStamped, "/cmd_vel_stamped", self._on_cmd_vel_stamped, 10, callback_group=group)
 
         self.walking: WalkingController | None = None
+        hosts: dict[str, SkillHost] = {}
+        context = SkillContext(sim.robot)
         if sim.robot.feet_sites:
             self.walking = WalkingController(sim.model)
-            sim.set_controller(Slot.LOCOMOTION, self.walking)
+            legs = SkillHost(self.walking)  # Walk and NavigateToPose run in front of the walker
+            sim.set_controller(Slot.LOCOMOTION, legs)
+            hosts[LEGS] = legs
+            context.walker = self.walking
+            context.grid = grid_from_obstacles(sim.robot.obstacles)
             declare(node, tuple(
                 ParameterSpec(GAIT_PREFIX + name, float(getattr(self.walking.params, name)), description, low, high)
                 for name, (low, high, description) in PARAMETER_RANGES.items()
@@ -85,6 +96,7 @@ class InLoopPlugins:
             self._arm_mode = {arm: ArmCommand.HOLD for arm in self.arms.arms}
             node.create_subscription(ArmCommand, "~/arm_command", self._on_arm_command, COMMAND_QOS, callback_group=group)
             self._arm_pub = node.create_publisher(ArmState, "~/arm_state", 10)
+        self.skills = SkillBridge(node, sim, lock, hosts, context)
 
     # ----- /cmd_vel ----------------------------------------------------------------------
     def on_cmd_vel(self, msg: Twist) -> None:
@@ -104,6 +116,13 @@ class InLoopPlugins:
             self._node.get_logger().warning(f"/cmd_vel ({vx}, {vy}, {wz}) is not finite; ignored")
             return
         with self._lock:
+            if self.skills.busy(LEGS):
+                if not self._warned_busy:
+                    self._warned_busy = True
+                    self._node.get_logger().warning(
+                        "/cmd_vel ignored: a Walk or NavigateToPose goal drives the legs (cancel it to teleoperate)")
+                return
+            self._warned_busy = False
             self._cmd_vel = (vx, vy, wz)
             self._cmd_vel_time = self._sim.time
             self._cmd_vel_live = True
@@ -114,7 +133,7 @@ class InLoopPlugins:
         if self._cmd_vel_live and now - self._cmd_vel_time > float(self._node.get_parameter("cmd_vel_timeout").value):
             self._cmd_vel_live = False
             self._cmd_vel = (0.0, 0.0, 0.0)
-            if self.walking is not None:
+            if self.walking is not None and not self.skills.busy(LEGS):
                 self.walking.set_velocity_command(0.0, 0.0, 0.0)
 
     @property
@@ -231,8 +250,13 @@ class InLoopPlugins:
         msg.object_lift = float(progress.object_lift)
 
     # ----- state publishing and resets ---------------------------------------------------
+    def after_step(self) -> None:
+        """Under the lock, after each stretch of stepping: goals that started or ended are reported at once."""
+        self.skills.publish_changed()
+
     def publish_state(self, now: float) -> None:
         """Under the lock, when controller state topics are due."""
+        self.skills.publish_all()
         if self.walking is not None and self._locomotion_pub.get_subscription_count() > 0:
             status = self.walking.status()
             msg = self._locomotion_msg
@@ -260,6 +284,7 @@ class InLoopPlugins:
         for arm in self._arm_seq:
             self._arm_seq[arm] = 0
             self._arm_mode[arm] = ArmCommand.HOLD
+        self.skills.publish_changed()  # the goals the reset ended, at once
 
     def on_fault(self, reason: str) -> None:
         self.on_reset()

@@ -289,6 +289,7 @@ class SimNode(LifecycleNode):
             sim.step_physics(steps)
         except Exception as error:  # noqa: BLE001 - the physics thread must survive a controller failure
             self._recover(error)
+        self.plugins.after_step()
         self._publish_due(sim.time)
 
     def _next_stop(self) -> float:
@@ -499,6 +500,7 @@ class SimNode(LifecycleNode):
         steps = max(1, math.ceil((due - sim.time) / dt - 1e-6))
         self.plugins.before_step(sim.time)
         sim.step_physics(steps)
+        self.plugins.after_step()
         self._publish_due(sim.time)
 
     def destroy(self) -> None:

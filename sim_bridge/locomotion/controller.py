@@ -144,6 +144,7 @@ class WalkingController:
         self._sole_half = (names.SOLE_HALF_SIZE[0] - SUPPORT_MARGIN, names.SOLE_HALF_SIZE[1] - SUPPORT_MARGIN)
         self._data: mujoco.MjData | None = None
         self._target: Velocity = _ZERO
+        self._stop_point: Point | None = None
         self._init_state()
 
     # ----- public API -------------------------------------------------------------------
@@ -192,6 +193,32 @@ class WalkingController:
             min(max(float(wz), -yaw_rate), yaw_rate),
         )
 
+    def set_stop_point(self, point: Point | None) -> None:
+        """Walk no farther than ``point`` (world x, y [m]) along the walking heading; None lifts the limit.
+
+        Footsteps are shortened so that the walking frame (the midpoint between the feet) lands on
+        the point instead of passing it: a goal-directed walk plans its last steps onto its goal and
+        then commands zero (:meth:`stop_point_remaining` says how far the planned frame still is).
+        """
+        self._stop_point = None if point is None else (float(point[0]), float(point[1]))
+
+    def feet_midpoint(self, data: mujoco.MjData) -> Point:
+        """The measured midpoint between the sole centres, world (x, y) [m]: where the walking frame stands."""
+        left, right = self._feet(data)
+        return _midpoint((left.x, left.y), (right.x, right.y))
+
+    def stop_point_remaining(self) -> float:
+        """Distance [m] along the walking heading from the planned walking frame to the stop point.
+
+        The planned frame is the one the last footstep landed in; positive while the stop point is
+        ahead, 0 without a stop point.
+        """
+        if self._stop_point is None:
+            return 0.0
+        pos, yaw = self._frame_pos, self._frame_yaw
+        forward, _ = unrotate(yaw, self._stop_point[0] - pos[0], self._stop_point[1] - pos[1])
+        return forward
+
     def set_gait_parameters(self, params: GaitParameters) -> None:
         """Apply new gait parameters; they take effect from the next phase of the gait.
 
@@ -232,6 +259,7 @@ class WalkingController:
         self._restore_servos(model)
         self._data = data
         self._target = _ZERO
+        self._stop_point = None
         self._wbc.reset()
         self._init_state()
 
@@ -501,6 +529,11 @@ class WalkingController:
         period = self._params.step_period
         turn = velocity[2] * period
         forward = velocity[0] * period + (self._speed_correction if velocity[0] != 0.0 else 0.0)
+        stop = self._stop_point
+        if stop is not None and forward != 0.0:
+            # Never plan the walking frame past the stop point (along its heading).
+            ahead, _ = unrotate(frame_yaw, stop[0] - frame_pos[0], stop[1] - frame_pos[1])
+            forward = min(forward, max(ahead, 0.0)) if forward > 0.0 else max(forward, min(ahead, 0.0))
         lateral = 2.0 * velocity[1] * period if velocity[1] * swing.sign > 0 else 0.0
         dx, dy = rotate(frame_yaw + 0.5 * turn, forward, lateral)
         return (frame_pos[0] + dx, frame_pos[1] + dy), frame_yaw + turn
@@ -540,7 +573,7 @@ class WalkingController:
         at a steady command means for a whole gait phase.
         """
         key = (frame_pos, frame_yaw, support, self._stopping, self._velocity, self._speed_correction,
-               self._params.step_period)
+               self._params.step_period, self._stop_point)
         if key != self._plan_key:
             self._plan_key = key
             self._plan_base = (support, False, frame_pos, frame_yaw)

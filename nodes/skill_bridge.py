@@ -1,0 +1,155 @@
+"""``/sim`` side of the goal protocol: SkillCommand in, skills in the control step, SkillState out.
+
+Commands are applied under the simulation lock between two stretches of stepping, at the sim time
+at which they arrive (while paused, at the paused instant). A goal's state is published at once when
+it starts, ends or is asked to cancel, and at ``state_rate`` while anyone listens.
+"""
+
+from __future__ import annotations
+
+import collections
+import threading
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from rclpy.serialization import deserialize_message, serialize_message
+
+from nodes.conversions import set_time
+from nodes.skill_protocol import BINDINGS, SKILL_COMMAND_TOPIC, SKILL_STATE_TOPIC, SkillContext, fill_message, result_message
+from sim_bridge import Simulation
+from sim_bridge.errors import InvalidGoalError
+from sim_bridge.skills import SkillHost, SkillOutcome, SkillRun, SkillStatus
+from sim_bridge.skills.base import INVALID_GOAL
+from sim_interfaces.msg import SkillCommand, SkillState
+
+QOS = QoSProfile(depth=100)
+SEEN_COMMANDS = 256  # recent (resource, goal_seq) starts remembered, so a re-sent START is applied once
+
+
+class SkillBridge:
+    """Routes SkillCommands to the skill hosts of one simulation and publishes their SkillStates.
+
+    Args:
+        node: the sim node.
+        sim: its simulation.
+        lock: the lock that guards ``sim`` (commands take it; ``publish_*`` are called with it held).
+        hosts: resource name -> the skill host that runs that resource's goals.
+        context: what the bindings build skills from.
+    """
+
+    def __init__(self, node: Node, sim: Simulation, lock: threading.RLock, hosts: dict[str, SkillHost],
+                 context: SkillContext) -> None:
+        self._node = node
+        self._sim = sim
+        self._lock = lock
+        self._hosts = hosts
+        self._context = context
+        self._seen: collections.deque[tuple[str, int]] = collections.deque(maxlen=SEEN_COMMANDS)
+        self._refused: list[SkillRun] = []
+        self._pub = node.create_publisher(SkillState, SKILL_STATE_TOPIC, QOS)
+        node.create_subscription(SkillCommand, SKILL_COMMAND_TOPIC, self._on_command, QOS,
+                                 callback_group=ReentrantCallbackGroup())
+
+    @property
+    def resources(self) -> tuple[str, ...]:
+        return tuple(self._hosts)
+
+    def busy(self, resource: str) -> bool:
+        host = self._hosts.get(resource)
+        return host is not None and host.running(resource) is not None
+
+    # ----- commands ----------------------------------------------------------------------------
+    def _on_command(self, msg: SkillCommand) -> None:
+        with self._lock:
+            self._apply(msg)
+            self.publish_changed()
+
+    def _apply(self, msg: SkillCommand) -> None:
+        host = self._hosts.get(msg.resource)
+        settings = dict(zip(msg.setting_names, msg.setting_values))
+        if msg.request == SkillCommand.CANCEL:
+            if host is not None:
+                host.cancel(msg.resource, msg.goal_seq)
+            return
+        if msg.request == SkillCommand.UPDATE:
+            if host is not None:
+                host.update_settings(msg.resource, msg.goal_seq, settings)
+            return
+        key = (msg.resource, msg.goal_seq)
+        if key in self._seen:
+            return  # a START sent again before its state was seen: already applied
+        self._seen.append(key)
+        now = self._sim.time
+        binding = BINDINGS.get(msg.skill)
+        if msg.request != SkillCommand.START:
+            reason = f"unknown request {msg.request}; requests: START=0, CANCEL=1, UPDATE=2"
+        elif binding is None:
+            reason = f"unknown skill {msg.skill!r}; skills: {', '.join(BINDINGS)}"
+        elif host is None:
+            reason = f"unknown resource {msg.resource!r} on robot {self._sim.robot.name!r}; resources: {', '.join(self._hosts) or 'none'}"
+        else:
+            try:
+                goal = deserialize_message(bytes(msg.goal), binding.action_type.Goal)
+                skill = binding.build(goal, settings, self._context)
+            except InvalidGoalError as error:
+                reason = str(error)
+            except Exception as error:  # noqa: BLE001 - a malformed goal is refused with its reason, never kills /sim
+                reason = f"malformed {msg.skill} goal: {type(error).__name__}: {error}"
+            else:
+                host.start(msg.goal_seq, skill, self._sim.model, self._sim.data)
+                return
+        self._node.get_logger().warning(f"{msg.skill} goal {msg.goal_seq} on {msg.resource!r} refused: {reason}")
+        self._refused.append(SkillRun(msg.goal_seq, None, msg.skill, msg.resource, self.epoch, now,
+                                      status=SkillStatus.ABORTED, outcome=SkillOutcome.aborted(INVALID_GOAL, reason),
+                                      ended_at=now))
+
+    @property
+    def epoch(self) -> int:
+        """Resets of the simulation so far (every host counts them alike)."""
+        return max((host.epoch for host in self._hosts.values()), default=0)
+
+    # ----- states ------------------------------------------------------------------------------
+    def publish_changed(self) -> None:
+        """Under the lock: publish the goals that started, ended or were asked to cancel since last time."""
+        runs: list[SkillRun] = self._refused
+        self._refused = []
+        for host in set(self._hosts.values()):
+            runs.extend(host.take_changed())
+        if runs and self._pub.get_subscription_count() > 0:
+            for run in runs:
+                self._pub.publish(self._state(run))
+
+    def publish_all(self) -> None:
+        """Under the lock, at state_rate: the latest goal of every resource, while anyone listens."""
+        if self._pub.get_subscription_count() == 0:
+            return
+        self.publish_changed()
+        for host in set(self._hosts.values()):
+            for run in host.runs():
+                self._pub.publish(self._state(run))
+
+    def _state(self, run: SkillRun) -> SkillState:
+        now = self._sim.time
+        binding = BINDINGS[run.skill_name] if run.skill_name in BINDINGS else None
+        msg = SkillState(skill=run.skill_name, resource=run.resource, goal_seq=run.seq & 0xFFFFFFFF,
+                         reset_epoch=self.epoch, start_epoch=run.epoch, status=int(run.status),
+                         cancel_requested=run.cancel_requested)
+        set_time(msg.header.stamp, now if run.status is SkillStatus.RUNNING else run.ended_at)
+        if run.outcome is not None:
+            msg.message = run.outcome.message
+        if binding is None:
+            return msg
+        action = binding.action_type
+        frame = run.skill.pose_frame if run.skill is not None else "world"
+        if run.status is SkillStatus.RUNNING:
+            assert run.skill is not None
+            values = run.skill.feedback(self._sim.data)
+            msg.feedback = serialize_message(fill_message(action.Feedback(), values, now, frame))
+        else:
+            stamp = run.ended_at
+            if run.final_feedback:
+                msg.feedback = serialize_message(fill_message(action.Feedback(), run.final_feedback, stamp, frame))
+            result = result_message(action, run.outcome, run.final_result, stamp, frame)
+            msg.error_code = int(result.error_code)
+            msg.result = serialize_message(result)
+        return msg

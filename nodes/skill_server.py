@@ -1,0 +1,229 @@
+"""One generic action server over the goal protocol: validate, send, relay, end.
+
+:class:`SkillActionServer` serves one action whose goals run as a skill inside ``/sim``. It
+validates a goal with the binding's own validation (the same function ``/sim`` runs), sends it as a
+START, relays the skill's measured feedback (at ``feedback_rate`` of sim time, the first one at
+once), forwards a cancel as a CANCEL, and ends the goal with the Result ``/sim`` filled in (the state
+says SUCCEEDED, ABORTED or CANCELED). It knows of a reset because ``/sim`` ends the goal with the
+reset epoch in its state. A goal waits without holding a thread (``async`` execute, parked).
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action.server import ServerGoalHandle
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.task import Future
+
+from nodes.common import OnDemandTopic
+from nodes.conversions import seconds_of
+from nodes.executor import wait_parked
+from nodes.skill_protocol import BINDINGS, SKILL_COMMAND_TOPIC, SKILL_STATE_TOPIC, SkillBinding, result_codes
+from robot_models import RobotSpec
+from sim_bridge.errors import InvalidGoalError
+from sim_interfaces.msg import SkillCommand, SkillState
+
+ACK_TIMEOUT_S = 10.0  # wall seconds for /sim to report a goal it was sent
+RESEND_PERIOD_S = 1.0  # a START not yet reported is sent again (a message sent before discovery is lost)
+_STATUS_NAMES = {SkillState.SUCCEEDED: "SUCCEEDED", SkillState.ABORTED: "ABORTED", SkillState.CANCELED: "CANCELED"}
+_seq = itertools.count(1 + (os.getpid() % 4096) * 1_000_000)  # unique per process; /sim echoes it
+_seq_lock = threading.Lock()
+
+
+def _next_seq() -> int:
+    with _seq_lock:
+        return next(_seq) & 0xFFFFFFFF
+
+
+@dataclass
+class _Goal:
+    """A goal sent to /sim and not yet ended."""
+
+    handle: ServerGoalHandle
+    seq: int
+    resource: str
+    command: SkillCommand
+    done: Future = field(default_factory=Future)
+    sent_at: float = field(default_factory=time.monotonic)
+    acked: bool = False
+    last_feedback: float = float("-inf")
+
+
+class SkillActionServer:
+    """Serves ``action_name`` for one binding of the goal protocol.
+
+    Args:
+        node: the server node.
+        binding: which action and skill.
+        action_name: e.g. ``"/walk"``.
+        robot: the robot of ``/sim``.
+        settings: the node's parameters the skill reads, read when a goal starts or they change.
+        feedback_period: [s of sim time] between relayed feedback messages.
+    """
+
+    def __init__(self, node: Node, binding: SkillBinding, action_name: str, robot: RobotSpec,
+                 settings: Callable[[], dict[str, float]], feedback_period: Callable[[], float],
+                 states: OnDemandTopic[SkillState], commands: Any) -> None:
+        self._node = node
+        self.binding = binding
+        self._robot = robot
+        self._settings = settings
+        self._feedback_period = feedback_period
+        self._states = states
+        self._commands = commands
+        self._goals: dict[tuple[str, int], _Goal] = {}
+        self._lock = threading.Lock()
+        self._codes = result_codes(binding.action_type)
+        group = ReentrantCallbackGroup()
+        self.server = ActionServer(
+            node, binding.action_type, action_name, execute_callback=self._execute, goal_callback=self._accept,
+            handle_accepted_callback=lambda handle: handle.execute(), cancel_callback=self._cancel, callback_group=group)
+        node.create_timer(RESEND_PERIOD_S, self._watchdog, callback_group=group, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    # ----- goal life ---------------------------------------------------------------------------
+    def _accept(self, goal: Any) -> GoalResponse:
+        try:
+            self.binding.validate(goal, self._robot)
+            self.binding.resource(goal, self._robot)
+        except InvalidGoalError as reason:
+            self._node.get_logger().warning(f"{self.binding.action_type.__name__} goal rejected: {reason}")
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
+    async def _execute(self, handle: ServerGoalHandle) -> Any:
+        resource = self.binding.resource(handle.request, self._robot)
+        settings = self._settings()
+        command = SkillCommand(request=SkillCommand.START, skill=self.binding.name, resource=resource, goal_seq=_next_seq(),
+                               goal=serialize_message(handle.request), setting_names=list(settings),
+                               setting_values=[float(v) for v in settings.values()])
+        goal = _Goal(handle, command.goal_seq, resource, command)
+        with self._lock:
+            self._goals[(resource, goal.seq)] = goal
+        with self._states.held():
+            self._send(command)
+            try:
+                return await wait_parked(goal.done)
+            finally:
+                with self._lock:
+                    self._goals.pop((resource, goal.seq), None)
+
+    def _cancel(self, handle: ServerGoalHandle) -> CancelResponse:
+        goal = self._find(handle)
+        if goal is not None:
+            self._send(SkillCommand(request=SkillCommand.CANCEL, skill=self.binding.name, resource=goal.resource, goal_seq=goal.seq))
+        return CancelResponse.ACCEPT
+
+    def update_settings(self) -> None:
+        """Send the current settings to every running goal (a parameter changed)."""
+        settings = self._settings()
+        for goal in self._running():
+            self._send(SkillCommand(request=SkillCommand.UPDATE, skill=self.binding.name, resource=goal.resource,
+                                    goal_seq=goal.seq, setting_names=list(settings),
+                                    setting_values=[float(v) for v in settings.values()]))
+
+    # ----- states from /sim --------------------------------------------------------------------
+    def on_state(self, state: SkillState) -> None:
+        """A SkillState of any resource: relay it to the goal it belongs to."""
+        with self._lock:
+            goal = self._goals.get((state.resource, state.goal_seq))
+        if goal is None or goal.done.done():
+            return
+        goal.acked = True
+        action = self.binding.action_type
+        if state.status == SkillState.RUNNING:
+            now = seconds_of(state.header.stamp)
+            if now - goal.last_feedback >= self._feedback_period() or goal.last_feedback == float("-inf"):
+                goal.last_feedback = now
+                if state.feedback:
+                    goal.handle.publish_feedback(deserialize_message(bytes(state.feedback), action.Feedback))
+            return
+        if state.status not in _STATUS_NAMES:
+            return
+        result = deserialize_message(bytes(state.result), action.Result) if state.result else action.Result()
+        if not state.result:
+            result.error_code, result.error_msg = action.Result.SIM_FAULT, state.message or "ended without a result"
+        self._end(goal, state.status, result)
+
+    def _end(self, goal: _Goal, status: int, result: Any) -> None:
+        handle = goal.handle
+        if handle.is_active:
+            if status == SkillState.CANCELED and handle.is_cancel_requested:
+                handle.canceled()
+            elif status == SkillState.SUCCEEDED:
+                handle.succeed()
+            else:
+                handle.abort()
+        name = self._codes.get(int(result.error_code), str(result.error_code))
+        text = f"{self.binding.name} goal {goal.seq} ended {name}: {result.error_msg}"
+        if status == SkillState.SUCCEEDED or status == SkillState.CANCELED:
+            self._node.get_logger().info(text)
+        else:
+            self._node.get_logger().warning(text)
+        goal.done.set_result(result)
+
+    def _watchdog(self) -> None:
+        """Re-send unanswered STARTs; end goals /sim never answered (it is not running, or not this robot)."""
+        now = time.monotonic()
+        for goal in self._running():
+            if goal.acked:
+                continue
+            if now - goal.sent_at > ACK_TIMEOUT_S:
+                result = self.binding.action_type.Result()
+                result.error_code = self.binding.action_type.Result.SIM_FAULT
+                result.error_msg = (f"no answer from /sim on {SKILL_STATE_TOPIC} within {ACK_TIMEOUT_S:g} s: "
+                                    f"is /sim running with the {self._robot.name}?")
+                self._end(goal, SkillState.ABORTED, result)
+            else:
+                self._send(goal.command)
+
+    # ----- helpers -----------------------------------------------------------------------------
+    def _send(self, command: SkillCommand) -> None:
+        command.header.stamp = self._node.get_clock().now().to_msg()
+        self._commands.publish(command)
+
+    def _running(self) -> Iterator[_Goal]:
+        with self._lock:
+            goals = list(self._goals.values())
+        return (goal for goal in goals if not goal.done.done())
+
+    def _find(self, handle: ServerGoalHandle) -> _Goal | None:
+        for goal in self._running():
+            if goal.handle is handle:
+                return goal
+        return None
+
+
+def skill_servers(node: Node, robot: RobotSpec, actions: dict[str, str], settings: Callable[[], dict[str, float]],
+                  feedback_period: Callable[[], float]) -> dict[str, SkillActionServer]:
+    """Action servers for several skills of one node, sharing one /sim/skill_state stream and one command publisher.
+
+    Args:
+        actions: skill name -> action name (e.g. ``{"walk": "/walk"}``).
+    """
+    from rclpy.qos import QoSProfile
+
+    servers: dict[str, SkillActionServer] = {}
+
+    def on_state(state: SkillState) -> None:
+        server = servers.get(state.skill)
+        if server is not None:
+            server.on_state(state)
+
+    qos = QoSProfile(depth=100)
+    states: OnDemandTopic[SkillState] = OnDemandTopic(node, SkillState, SKILL_STATE_TOPIC, qos, ReentrantCallbackGroup(),
+                                                       on_message=on_state)
+    commands = node.create_publisher(SkillCommand, SKILL_COMMAND_TOPIC, qos)
+    for skill, action_name in actions.items():
+        servers[skill] = SkillActionServer(node, BINDINGS[skill], action_name, robot, settings, feedback_period, states, commands)
+    return servers
