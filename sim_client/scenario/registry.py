@@ -505,10 +505,25 @@ def actions_of(robot: RobotFacts) -> tuple[str, ...]:
 # ----- steps: the data model ----------------------------------------------------------------
 @dataclass(frozen=True)
 class Step:
-    """Base of all steps. ``mark`` names the sim time at which the step starts."""
+    """Base of all steps. ``mark`` names the sim time at which the step starts.
+
+    The schema checks references through the three methods below, which a kind overrides.
+    """
 
     line: int
     mark: str | None
+
+    def goal_sent(self) -> tuple[str, str] | None:
+        """(goal id, action) of a goal this step sends; its marks ``<id>.sent`` and ``<id>.done`` exist after it."""
+        return None
+
+    def goal_used(self) -> str | None:
+        """The id of a goal an earlier step must have sent."""
+        return None
+
+    def conditions(self) -> tuple[Condition, ...]:
+        """Conditions the step evaluates (their measures are checked like expectations')."""
+        return ()
 
 
 @dataclass(frozen=True)
@@ -525,6 +540,12 @@ class WaitStep(Step):
     goal: str | None = None
     timeout: float = 60.0
 
+    def goal_used(self) -> str | None:
+        return self.goal
+
+    def conditions(self) -> tuple[Condition, ...]:
+        return () if self.until is None else (self.until,)
+
 
 @dataclass(frozen=True)
 class SendGoalStep(Step):
@@ -537,10 +558,19 @@ class SendGoalStep(Step):
     timeout: float = 120.0
     cancel: Trigger | None = None
 
+    def goal_sent(self) -> tuple[str, str] | None:
+        return self.id, self.action
+
+    def conditions(self) -> tuple[Condition, ...]:
+        return () if self.cancel is None or self.cancel.when is None else (self.cancel.when,)
+
 
 @dataclass(frozen=True)
 class CancelStep(Step):
     goal: str = ""
+
+    def goal_used(self) -> str | None:
+        return self.goal
 
 
 @dataclass(frozen=True)

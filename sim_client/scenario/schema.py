@@ -138,26 +138,23 @@ def _parse_expectation(ctx: Ctx, raw: Any, line: int, index: int) -> Expectation
 def _check_references(ctx: Ctx, scenario: Scenario) -> None:
     marks = {"start", "end"}
     goals: dict[str, str] = {}
-    conditions: list[tuple[Condition, int]] = []
+    conditions: list[Condition] = []
     for step in scenario.steps:
         if step.mark:
             if step.mark in marks:
                 raise ctx.error(step.line, f"mark {step.mark!r} is defined twice")
             marks.add(step.mark)
-        if isinstance(step, SendGoalStep):
-            if step.id in goals:
-                raise ctx.error(step.line, f"goal id {step.id!r} is used twice")
-            goals[step.id] = step.action
-            marks.update({f"{step.id}.sent", f"{step.id}.done"})
-            if step.cancel is not None and step.cancel.when is not None:
-                conditions.append((step.cancel.when, step.cancel.line))
-        elif isinstance(step, (CancelStep, WaitStep)) and step.goal:
-            if step.goal not in goals:
-                raise ctx.error(step.line, f"goal {step.goal!r} is not sent by an earlier step; "
-                                f"known: {', '.join(goals) or 'none'}")
-        if isinstance(step, WaitStep) and step.until is not None:
-            conditions.append((step.until, step.until.line))
-    measures = [(c.measure, line) for c, line in conditions]
+        sent, used = step.goal_sent(), step.goal_used()
+        if sent is not None:
+            goal_id, sent_action = sent
+            if goal_id in goals:
+                raise ctx.error(step.line, f"goal id {goal_id!r} is used twice")
+            goals[goal_id] = sent_action
+            marks.update({f"{goal_id}.sent", f"{goal_id}.done"})
+        if used and used not in goals:
+            raise ctx.error(step.line, f"goal {used!r} is not sent by an earlier step; known: {', '.join(goals) or 'none'}")
+        conditions.extend(step.conditions())
+    measures = [(c.measure, c.line) for c in conditions]
     measures += [(e.measure, e.line) for e in scenario.expectations if e.measure is not None]
     for expectation in scenario.expectations:
         if expectation.outcome_goal is not None:
