@@ -11,16 +11,17 @@ from __future__ import annotations
 import math
 import os
 import sys
+from typing import Any
 
 import numpy as np
 from geometry_msgs.msg import Point, PoseStamped
+from nav_msgs.msg import Odometry
 from rclpy.action import ActionServer, CancelResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import JointState
-from nav_msgs.msg import Odometry
 
 import robot_models
 from nodes.common import ActiveGoal, GoalOwnership, GoalRejected, OnDemandTopic, finish_goal, goal_validator, guarded, spin_server
@@ -65,7 +66,7 @@ PICK_PLACE_CODES = {
 class ArmServer(Node):
     """Serves ``/move_arm``, ``/pick_place`` and ``/arm/compute_ik`` for the robot of ``/sim``."""
 
-    def __init__(self, robot: str, **kwargs) -> None:
+    def __init__(self, robot: str, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
         declare(self, (ParameterSpec("robot", robot, "robot whose arms are served", read_only=True), *PARAMETERS))
         self.robot = robot_models.load(robot)
@@ -93,14 +94,15 @@ class ArmServer(Node):
         self.create_service(ComputeIK, "~/compute_ik", self._compute_ik, callback_group=group)
         self.get_logger().info(f"serving /move_arm and /pick_place for {robot} arms: {', '.join(self.arms)}")
 
-    def _param(self, name: str):
+    def _param(self, name: str) -> Any:
         return self.get_parameter(name).value
 
     # ----- validation --------------------------------------------------------------------
     def _arm_name(self, requested: str) -> str:
         name = requested or self.robot.default_end_effector
         if name not in self.arms:
-            raise GoalRejected(f"unknown end_effector {requested!r}; known: {', '.join(self.arms)} (empty = {self.robot.default_end_effector})")
+            raise GoalRejected(f"unknown end_effector {requested!r}; known: {', '.join(self.arms)} "
+                               f"(empty = {self.robot.default_end_effector})")
         return name
 
     def _target_in_world(self, target: PoseStamped, position_only: bool) -> Pose:
@@ -178,7 +180,7 @@ class ArmServer(Node):
         if objects is None:
             raise GoalRejected(f"no /objects from /sim within {FRESH_TIMEOUT_S:g} s (is it running?); give object_id")
         distances = {name: math.dist((p.x, p.y, p.z), (o.position.x, o.position.y, o.position.z))
-                     for name, o in zip(objects.names, objects.poses)}
+                     for name, o in zip(objects.names, objects.poses, strict=False)}
         name, distance = min(distances.items(), key=lambda item: item[1])
         if distance > 0.03:
             raise GoalRejected(f"no object within 3 cm of pick_pose (nearest: {name} at {distance:.3f} m)")
@@ -264,7 +266,8 @@ class ArmServer(Node):
                 self._hold(arm, owner.seq)
                 self._fill_move(result, state)
                 return self._finish(goal_handle, result, MoveArm.Result.TIMEOUT,
-                                    f"timed out after {timeout:.1f} s of sim time, {state.position_error * 1e3:.1f} mm from the target",
+                                    f"timed out after {timeout:.1f} s of sim time, "
+                                    f"{state.position_error * 1e3:.1f} mm from the target",
                                     abort=True)
             if now - last_feedback >= feedback_period:
                 last_feedback = now
@@ -279,7 +282,8 @@ class ArmServer(Node):
             self._arm_state.latest.wait_next(1.0)
             state = self._arm_state.latest.get(arm) or state
 
-    def _interrupted(self, goal_handle: ServerGoalHandle, arm: str, owner: ActiveGoal, state: ArmState, result, codes):
+    def _interrupted(self, goal_handle: ServerGoalHandle, arm: str, owner: ActiveGoal, state: ArmState, result: Any,
+                     codes: Any) -> Any:
         """End the goal if it was preempted, canceled (the arm then holds) or the sim was reset; else None."""
         if owner.preempted.is_set():
             return self._finish(goal_handle, result, codes.PREEMPTED, "preempted by a newer goal on this arm", abort=True)
@@ -296,8 +300,8 @@ class ArmServer(Node):
         result.final_position_error = state.position_error
         result.final_orientation_error = state.orientation_error
 
-    def _finish(self, goal_handle: ServerGoalHandle, result, code: int, message: str,
-                abort: bool = False, cancel: bool = False):
+    def _finish(self, goal_handle: ServerGoalHandle, result: Any, code: int, message: str,
+                abort: bool = False, cancel: bool = False) -> Any:
         return finish_goal(self, goal_handle, result, code, message, abort=abort, cancel=cancel)
 
     # ----- PickPlace ---------------------------------------------------------------------
@@ -394,7 +398,7 @@ class ArmServer(Node):
         if joints is None:
             raise GoalRejected(f"no /joint_states from /sim within {FRESH_TIMEOUT_S:g} s: is it running, not paused? "
                                "(the IK starts from the current joint state)")
-        for name, value in zip(joints.name, joints.position):
+        for name, value in zip(joints.name, joints.position, strict=False):
             qpos[model.joint(name).qposadr[0]] = value
         if self.robot.floating_base:
             odom = self._odom.fresh(FRESH_TIMEOUT_S)
@@ -407,11 +411,11 @@ class ArmServer(Node):
         return qpos
 
 
-def _position(pose_msg_) -> np.ndarray:
+def _position(pose_msg_: Any) -> np.ndarray:
     return np.array([pose_msg_.position.x, pose_msg_.position.y, pose_msg_.position.z])
 
 
-def _stamped(pose, stamp) -> PoseStamped:
+def _stamped(pose: Any, stamp: Any) -> PoseStamped:
     msg = PoseStamped(pose=pose)
     msg.header.frame_id = "world"
     msg.header.stamp = stamp

@@ -17,19 +17,19 @@ NANOSECONDS_PER_SECOND = 1_000_000_000
 
 def time_msg(seconds: float) -> Time:
     """A ``builtin_interfaces/Time`` for a sim time [s] (rounded to the nanosecond)."""
-    total = int(round(seconds * NANOSECONDS_PER_SECOND))
+    total = round(seconds * NANOSECONDS_PER_SECOND)
     return Time(sec=total // NANOSECONDS_PER_SECOND, nanosec=total % NANOSECONDS_PER_SECOND)
 
 
 def set_time(stamp: Time, seconds: float) -> None:
     """Write a sim time [s] into an existing stamp in place (cheaper than a new message)."""
-    total = int(round(seconds * NANOSECONDS_PER_SECOND))
+    total = round(seconds * NANOSECONDS_PER_SECOND)
     stamp.sec = total // NANOSECONDS_PER_SECOND
     stamp.nanosec = total % NANOSECONDS_PER_SECOND
 
 
 def duration_msg(seconds: float) -> Duration:
-    total = int(round(max(0.0, seconds) * NANOSECONDS_PER_SECOND))
+    total = round(max(0.0, seconds) * NANOSECONDS_PER_SECOND)
     return Duration(sec=total // NANOSECONDS_PER_SECOND, nanosec=total % NANOSECONDS_PER_SECOND)
 
 

@@ -6,8 +6,14 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, SetParametersResult
-from rcl_interfaces.msg import Parameter as ParameterMsg
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    Parameter as ParameterMsg,
+    ParameterDescriptor,
+    ParameterType,
+    SetParametersResult,
+)
 from rcl_interfaces.srv import SetParameters, SetParametersAtomically
 from rclpy.node import Node
 
@@ -76,7 +82,8 @@ def _guarded_set(inner: Callable[[Any, Any], Any]) -> Callable[[Any, Any], Any]:
         problems = [parameter_problem(p) for p in request.parameters]
         if not any(problems):
             return inner(request, response)
-        valid = SetParameters.Request(parameters=[p for p, problem in zip(request.parameters, problems) if not problem])
+        kept = [p for p, problem in zip(request.parameters, problems, strict=True) if not problem]
+        valid = SetParameters.Request(parameters=kept)
         applied = iter(inner(valid, SetParameters.Response()).results if valid.parameters else [])
         response.results = [SetParametersResult(successful=False, reason=problem) if problem else next(applied)
                             for problem in problems]

@@ -41,7 +41,7 @@ def _little_endian(buffer: bytes) -> None:
 
 
 def _write_stamp(buffer: bytearray, offset: int, seconds: float) -> None:
-    total = int(round(seconds * NANOSECONDS_PER_SECOND))
+    total = round(seconds * NANOSECONDS_PER_SECOND)
     struct.pack_into("<iI", buffer, offset, total // NANOSECONDS_PER_SECOND, total % NANOSECONDS_PER_SECOND)
 
 
@@ -68,7 +68,8 @@ class JointStateTemplate:
         _little_endian(raw)
         self._buffer = bytearray(raw)
         self._stamp_offset = _locate(raw, struct.pack("<iI", *_STAMP_SENTINEL), "the stamp")
-        offsets = [_locate(raw, values.astype("<f8").tobytes(), name) for values, name in zip(sentinels, ("position", "velocity", "effort"))]
+        fields = ("position", "velocity", "effort")
+        offsets = [_locate(raw, values.astype("<f8").tobytes(), name) for values, name in zip(sentinels, fields, strict=True)]
         self._arrays = [np.frombuffer(self._buffer, dtype="<f8", count=n, offset=offset) for offset in offsets]
         self._check()
 
@@ -87,7 +88,8 @@ class JointStateTemplate:
         values = [rng.normal(size=n) for _ in range(3)]
         msg = deserialize_message(self.serialize(12.345678901, *values), JointState)
         ok = (list(msg.name) == self._names and (msg.header.stamp.sec, msg.header.stamp.nanosec) == (12, 345678901)
-              and all(np.array_equal(np.asarray(got), want) for got, want in zip((msg.position, msg.velocity, msg.effort), values)))
+              and all(np.array_equal(np.asarray(got), want)
+                      for got, want in zip((msg.position, msg.velocity, msg.effort), values, strict=True)))
         if not ok:
             raise TemplateError("JointState template failed its self-check")
 

@@ -15,17 +15,16 @@ import sys
 import threading
 import traceback
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import rclpy
-from geometry_msgs.msg import Pose as PoseMsg
+from geometry_msgs.msg import Pose as PoseMsg, TransformStamped, Twist
 from lifecycle_msgs.srv import ChangeState
-from geometry_msgs.msg import TransformStamped, Twist
-from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
-from nav_msgs.msg import Odometry
+from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg, Odometry
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy._rclpy_pybind11 import RCLError
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.parameter import Parameter
@@ -59,7 +58,8 @@ PARAMETERS = (
     ParameterSpec("start_paused", False, "start with the physics paused (use ~/resume or ~/step)", read_only=True),
     ParameterSpec("real_time_factor", 1.0, "sim seconds per wall second; 0 = as fast as possible", 0.0, 1000.0),
     ParameterSpec("joint_state_rate", 200.0, "/joint_states publish rate [Hz of sim time]", 1.0, 500.0),
-    ParameterSpec("clock_rate", 100.0, "/clock publish rate [Hz of sim time]; keep >= the fastest timer of any node on sim time", 10.0, 500.0),
+    ParameterSpec("clock_rate", 100.0, "/clock publish rate [Hz of sim time]; keep >= the fastest timer of any node on sim time",
+                  10.0, 500.0),
     ParameterSpec("odom_rate", 30.0, "/odom and odom->base /tf publish rate [Hz of sim time]", 1.0, 500.0),
     ParameterSpec("link_tf_rate", 10.0, "/tf rate of the link transforms [Hz of sim time]; 0 = off", 0.0, 500.0),
     ParameterSpec("state_rate", 30.0, "rate of /objects and controller state topics [Hz of sim time]", 1.0, 500.0),
@@ -82,7 +82,7 @@ class _Schedule:
 class SimNode(LifecycleNode):
     """Lifecycle node ``/sim``: configure builds the scene, activate starts the physics thread."""
 
-    def __init__(self, **kwargs) -> None:
+    def __init__(self, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
         declare(self, PARAMETERS)
         self.sim: Simulation | None = None
@@ -103,7 +103,7 @@ class SimNode(LifecycleNode):
         self.context.on_shutdown(self._stop_thread)
         _refuse_unavailable_transitions(self)
 
-    def _param(self, name: str):
+    def _param(self, name: str) -> Any:
         return self.get_parameter(name).value
 
     # ----- parameters --------------------------------------------------------------------
@@ -397,7 +397,7 @@ class SimNode(LifecycleNode):
             return
         msg = self._objects_msg
         set_time(msg.header.stamp, now)
-        for pose, transform in zip(msg.poses, tf.transforms):
+        for pose, transform in zip(msg.poses, tf.transforms, strict=False):
             t, r = transform.transform.translation, transform.transform.rotation
             pose.position.x, pose.position.y, pose.position.z = t.x, t.y, t.z
             pose.orientation.w, pose.orientation.x, pose.orientation.y, pose.orientation.z = r.w, r.x, r.y, r.z

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import collections
 import threading
+
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
@@ -66,7 +67,7 @@ class SkillBridge:
 
     def _apply(self, msg: SkillCommand) -> None:
         host = self._hosts.get(msg.resource)
-        settings = dict(zip(msg.setting_names, msg.setting_values))
+        settings = dict(zip(msg.setting_names, msg.setting_values, strict=False))
         if msg.request == SkillCommand.CANCEL:
             if host is not None:
                 host.cancel(msg.resource, msg.goal_seq)
@@ -86,7 +87,8 @@ class SkillBridge:
         elif binding is None:
             reason = f"unknown skill {msg.skill!r}; skills: {', '.join(BINDINGS)}"
         elif host is None:
-            reason = f"unknown resource {msg.resource!r} on robot {self._sim.robot.name!r}; resources: {', '.join(self._hosts) or 'none'}"
+            reason = (f"unknown resource {msg.resource!r} on robot {self._sim.robot.name!r}; "
+                      f"resources: {', '.join(self._hosts) or 'none'}")
         else:
             try:
                 goal = deserialize_message(bytes(msg.goal), binding.action_type.Goal)

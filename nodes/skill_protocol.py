@@ -18,9 +18,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from builtin_interfaces.msg import Duration
-from geometry_msgs.msg import Pose as PoseMsg
-from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import Pose as PoseMsg, PoseStamped
 
 from nodes.conversions import duration_msg, set_pose, set_time, yaw_of
 from robot_models import RobotSpec, WalkingLimits
@@ -131,15 +129,15 @@ def fill_message(msg: Any, values: Values, stamp_s: float, frame: str) -> Any:
             else:
                 setattr(msg, name, pose)
         elif kind == "builtin_interfaces/Duration":
-            setattr(msg, name, duration_msg(float(value)) if not isinstance(value, Duration) else value)  # type: ignore[arg-type]  # a number of seconds here
+            setattr(msg, name, duration_msg(float(value)))
         elif kind in ("float", "double"):
-            setattr(msg, name, float(value))  # type: ignore[arg-type]  # a number by the field's type
+            setattr(msg, name, float(value))
         elif kind == "string":
             setattr(msg, name, str(value))
         elif kind == "boolean":
             setattr(msg, name, bool(value))
         else:  # the integer types
-            setattr(msg, name, int(value))  # type: ignore[call-overload]  # a number by the field's type
+            setattr(msg, name, int(value))
     return msg
 
 

@@ -121,7 +121,8 @@ class SkillActionServer:
     def _cancel(self, handle: ServerGoalHandle) -> CancelResponse:
         goal = self._find(handle)
         if goal is not None:
-            self._send(SkillCommand(request=SkillCommand.CANCEL, skill=self.binding.name, resource=goal.resource, goal_seq=goal.seq))
+            self._send(SkillCommand(request=SkillCommand.CANCEL, skill=self.binding.name, resource=goal.resource,
+                                    goal_seq=goal.seq))
         return CancelResponse.ACCEPT
 
     def update_settings(self) -> None:

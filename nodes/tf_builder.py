@@ -18,7 +18,7 @@ def _relative_transforms(data: mujoco.MjData, parents: np.ndarray, children: np.
     positions = np.einsum("nji,nj->ni", parent_rot, delta)
     quats = np.empty((len(children), 4))
     inv = np.empty(4)
-    for i, (p, c) in enumerate(zip(parents.tolist(), children.tolist())):
+    for i, (p, c) in enumerate(zip(parents.tolist(), children.tolist(), strict=False)):
         mujoco.mju_negQuat(inv, data.xquat[p])
         mujoco.mju_mulQuat(quats[i], inv, data.xquat[c])
     return positions, quats
@@ -49,7 +49,7 @@ class TransformSet:
 
     def update(self, data: mujoco.MjData, sim_time: float) -> TFMessage:
         positions, quats = _relative_transforms(data, self._parents, self._children)
-        for transform, p, q in zip(self.message.transforms, positions.tolist(), quats.tolist()):
+        for transform, p, q in zip(self.message.transforms, positions.tolist(), quats.tolist(), strict=False):
             set_time(transform.header.stamp, sim_time)
             t = transform.transform.translation
             t.x, t.y, t.z = p[0], p[1], p[2]

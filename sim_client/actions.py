@@ -212,18 +212,21 @@ class _ActionClientBase(Generic[GoalT, FeedbackT, ResultT]):
         self.wait_for_server(timeout)
         handle: GoalHandle[FeedbackT, ResultT] = GoalHandle(self, goal)
         what = f"acceptance of the {self.name} goal"
-        future = self.session.in_executor(lambda: self._client.send_goal_async(goal, feedback_callback=handle._on_feedback), timeout, what)
+        future = self.session.in_executor(lambda: self._client.send_goal_async(goal, feedback_callback=handle._on_feedback),
+                                          timeout, what)
         goal_handle = self.session.wait_future(future, timeout, what)
         handle._handle = goal_handle
         if goal_handle.accepted:
-            handle._result_future = self.session.in_executor(goal_handle.get_result_async, timeout, f"the {self.name} result request")
+            handle._result_future = self.session.in_executor(goal_handle.get_result_async, timeout,
+                                                             f"the {self.name} result request")
         return handle
 
     def destroy(self) -> None:
         self._client.destroy()
 
 
-def _pose(x: float, y: float, z: float, roll: float = 0.0, pitch: float = 0.0, yaw: float = 0.0, frame: str = "world") -> PoseStamped:
+def _pose(x: float, y: float, z: float, roll: float = 0.0, pitch: float = 0.0, yaw: float = 0.0,
+          frame: str = "world") -> PoseStamped:
     """A PoseStamped from a position [m] and roll/pitch/yaw [rad] (extrinsic x-y-z)."""
     pose = PoseStamped()
     pose.header.frame_id = frame

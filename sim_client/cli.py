@@ -190,7 +190,8 @@ def _watch_view(options: argparse.Namespace) -> int:
             table = Table(title="sim watch (Ctrl-C to quit)", show_header=False, min_width=70)
             table.add_column("what", style="bold")
             table.add_column("value")
-            table.add_row("sim time", f"{clock.latest.clock.sec + clock.latest.clock.nanosec * 1e-9:.2f} s" if clock.latest else "waiting for /clock ...")
+            stamp = clock.latest.clock if clock.latest else None
+            table.add_row("sim time", f"{stamp.sec + stamp.nanosec * 1e-9:.2f} s" if stamp else "waiting for /clock ...")
             table.add_row("real-time factor", f"{rtf.latest.data:.2f}" if rtf.latest else "-")
             if odom.latest is not None:
                 p = odom.latest.pose.pose
@@ -236,7 +237,8 @@ def _watch_view(options: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="sim", description="Drive the headless simulator: bring it up, send goals, tune parameters, watch.")
+    parser = argparse.ArgumentParser(
+        prog="sim", description="Drive the headless simulator: bring it up, send goals, tune parameters, watch.")
     sub = parser.add_subparsers(dest="command", required=True)
     up = sub.add_parser("up", help="bring up /sim and every server for the robot (bringup)")
     up.add_argument("--robot", choices=("g1", "panda"), default="g1")
@@ -304,7 +306,8 @@ def main(argv: list[str] | None = None) -> int:
         goal = MoveArmClient.goal(options.x, options.y, options.z, rpy=tuple(options.rpy) if options.rpy else None,
                                   arm=options.arm, position_tolerance=options.tolerance,
                                   orientation_tolerance=0.05 if options.rpy else 0.0)
-        return _run_goal(MoveArmClient, goal, f"move-arm to ({options.x:g}, {options.y:g}, {options.z:g})", options.server_timeout)
+        what = f"move-arm to ({options.x:g}, {options.y:g}, {options.z:g})"
+        return _run_goal(MoveArmClient, goal, what, options.server_timeout)
     goal = PickPlaceClient.goal(options.box, tuple(options.place))
     return _run_goal(PickPlaceClient, goal, f"pick {options.box}", options.server_timeout)
 

@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import typing
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -21,7 +22,7 @@ class ChildProcess:
                  own_group: bool = True) -> None:
         self.args = args
         self._own_group = own_group
-        self._log = None
+        self._log: typing.IO[bytes] | None = None
         if inherit_output:  # output goes where the caller's goes (a launcher in a terminal)
             self.log_path = pathlib.Path("/dev/null")
         elif log_dir is not None:
@@ -29,7 +30,8 @@ class ChildProcess:
             self.log_path = log_dir / f"{args[0]}.log"
             self._log = open(self.log_path, "wb")  # noqa: SIM115 - closed in stop()
         else:
-            handle = tempfile.NamedTemporaryFile(prefix=f"{args[0]}-", suffix=".log", delete=False)
+            handle = tempfile.NamedTemporaryFile(  # noqa: SIM115 - the process writes to it; closed in stop()
+                prefix=f"{args[0]}-", suffix=".log", delete=False)
             self.log_path = pathlib.Path(handle.name)
             self._log = handle
         self.process = subprocess.Popen(

@@ -96,7 +96,7 @@ class RosSession:
     def _spin(self) -> None:
         try:
             self._executor.spin()
-        except Exception:  # noqa: BLE001 - executor ends when the context shuts down
+        except Exception:
             if self.context.ok():
                 raise
 

@@ -87,7 +87,8 @@ class WalkGoal:
             raise InvalidGoalError(f"distance must be non-zero and within +-{longest:g} m, got {self.distance_m}")
         low, high = self.limits.speed_range_mps
         if self.speed_mps != 0.0 and not low <= self.speed_mps <= high:
-            raise InvalidGoalError(f"speed must be in [{low}, {high}] m/s (0 = the walking_speed parameter), got {self.speed_mps}")
+            raise InvalidGoalError(f"speed must be in [{low}, {high}] m/s (0 = the walking_speed parameter), "
+                                   f"got {self.speed_mps}")
         if self.timeout_s < 0.0:
             raise InvalidGoalError(f"timeout must be >= 0 s (0 = automatic), got {self.timeout_s}")
 

@@ -11,8 +11,7 @@ import pytest
 import robot_models
 from robot_models import g1_constants as names
 from sim_bridge import InvalidGoalError, Simulation, Slot
-from sim_bridge.locomotion import PARAMETER_RANGES, GaitParameters, LocomotionMode, WalkingController
-from sim_bridge.locomotion import wbc
+from sim_bridge.locomotion import PARAMETER_RANGES, GaitParameters, LocomotionMode, WalkingController, wbc
 from sim_bridge.locomotion.controller import MOTOR_JOINTS
 from sim_bridge.locomotion.planner import Footstep, Side, ZmpSegment, clip_to_polygon, convex_hull, dcm_reference
 

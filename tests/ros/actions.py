@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 from rclpy.action import ActionClient
 
@@ -35,8 +36,12 @@ class Sent:
 
 def send(session: RosSession, client: ActionClient, goal: Any, timeout: float = 30.0) -> Sent:
     sent = Sent(handle=None, session=session)
+
+    def on_feedback(msg: Any) -> None:
+        sent.feedback.append(msg.feedback)
+
     # Sent from the executor's thread: see RosSession.in_executor for the rclpy race this avoids.
-    future = session.in_executor(lambda: client.send_goal_async(goal, feedback_callback=lambda msg: sent.feedback.append(msg.feedback)),
+    future = session.in_executor(lambda: client.send_goal_async(goal, feedback_callback=on_feedback),
                                  timeout, "the goal request")
     sent.handle = session.wait_future(future, timeout, "goal acceptance")
     return sent

@@ -1,6 +1,5 @@
 """Test access to the project's process launcher (one implementation, in sim_client)."""
 
-from sim_client.processes import ChildProcess as NodeProcess
-from sim_client.processes import running
+from sim_client.processes import ChildProcess as NodeProcess, running
 
 __all__ = ["NodeProcess", "running"]

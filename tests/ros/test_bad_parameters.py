@@ -43,7 +43,8 @@ def test_unknown_types_and_empty_names_are_refused_and_the_rest_is_set(client, p
     assert not results[1].successful and "must not be empty" in results[1].reason
     assert results[2].successful, results[2].reason
 
-    atomic = SetParametersAtomically.Request(parameters=[_double(name, value + 1.0), Parameter(name=name, value=ParameterValue(type=99))])
+    bad = Parameter(name=name, value=ParameterValue(type=99))
+    atomic = SetParametersAtomically.Request(parameters=[_double(name, value + 1.0), bad])
     result = client.call(SetParametersAtomically, f"/{node}/set_parameters_atomically", atomic, timeout=10.0).result
     assert not result.successful and "99 is not a parameter type" in result.reason and "nothing was set" in result.reason
 

@@ -27,7 +27,7 @@ def test_sim_node_and_servers_exit_cleanly_on_ctrl_c(client, robot):
         for process in processes:
             process.send_signal(signal.SIGINT)
         codes = [process.stop() for process in processes]
-    for process, code in zip(processes, codes):
+    for process, code in zip(processes, codes, strict=False):
         output = process.output()
         assert code == 0, f"{process.args[0]} exited with {code}:\n{output[-3000:]}"
         # An error raised while stopping (e.g. destroying the node), not the interrupt itself: Python may

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 
@@ -132,7 +133,7 @@ def test_cmd_vel_turns_the_robot_in_place_by_ninety_degrees(client, odom, g1):
     finally:
         publisher.publish(Twist())
     stop_time = seconds_of(odom.latest.header.stamp)
-    longest_gap = max(b - a for a, b in zip(polled_at, polled_at[1:]))
+    longest_gap = max(b - a for a, b in itertools.pairwise(polled_at))
 
     def still() -> bool:
         publisher.publish(Twist())

@@ -22,8 +22,9 @@ def test_interface_packages_are_installed_and_importable():
     for package in ("sim_interfaces", "tf2_msgs"):
         assert (PREFIX / "share/ament_index/resource_index/packages" / package).is_file()
     assert (PREFIX / "share/sim_interfaces/action/Walk.action").is_file()
-    from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, Walk
     from tf2_msgs.msg import TFMessage
+
+    from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, Walk
 
     assert Walk.Result.FELL != Walk.Result.SUCCESS
     assert PickPlace.Feedback.RETREAT == 7

@@ -22,7 +22,7 @@ def test_joint_state_template_round_trips_every_field(robot):
         msg = deserialize_message(template.serialize(stamp, *values), JointState)
         assert list(msg.name) == names
         assert msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9 == pytest.approx(stamp, abs=1e-9)
-        for got, want in zip((msg.position, msg.velocity, msg.effort), values):
+        for got, want in zip((msg.position, msg.velocity, msg.effort), values, strict=False):
             np.testing.assert_array_equal(np.asarray(got), want)
 
 

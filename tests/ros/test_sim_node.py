@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 
@@ -57,7 +58,7 @@ def test_joint_states_arrive_at_the_configured_rate_stamped_with_sim_time(client
     assert rate == pytest.approx(200.0, rel=0.04)
     assert list(messages[-1].name) == list(g1_constants.ALL_JOINTS)
     stamps = [stamp_s(m) for m in messages]
-    assert all(b > a for a, b in zip(stamps, stamps[1:])), "stamps must increase"
+    assert all(b > a for a, b in itertools.pairwise(stamps)), "stamps must increase"
     latest_clock = clock_s(clock.latest)
     assert stamps[-1] < 1e6, "stamps are sim time, not wall-clock epoch time"
     assert abs(latest_clock - stamps[-1]) < 5.0
@@ -159,7 +160,7 @@ def test_reset_restores_the_keyframe_exactly_and_time_keeps_running(client, g1):
     np.testing.assert_allclose(np.array(at_reset.position), expected, atol=1e-9)
     client.wait_for(lambda: clock_s(clock.latest) > response.sim_time + 0.5, 20.0, "clock after reset")
     times = [clock_s(m) for m in clock.messages()]
-    assert all(b >= a for a, b in zip(times, times[1:])), "the clock must stay monotonic across a reset"
+    assert all(b >= a for a, b in itertools.pairwise(times)), "the clock must stay monotonic across a reset"
 
     bad = client.call(Reset, "/sim/reset", Reset.Request(keyframe="lying_down"))
     assert not bad.success and "stand" in bad.message

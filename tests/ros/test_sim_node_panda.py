@@ -19,7 +19,7 @@ def test_panda_publishes_its_joints_and_the_boxes(client):
         client.wait_for(lambda: objects.count > 2 and joints.count > 2, STARTUP_S, "/objects and /joint_states from the panda")
         names = list(objects.latest.names)
         assert names == list(panda_constants.BOX_NAMES)
-        for pose, home in zip(objects.latest.poses, panda_constants.BOX_HOME_POSITIONS):
+        for pose, home in zip(objects.latest.poses, panda_constants.BOX_HOME_POSITIONS, strict=False):
             assert abs(pose.position.x - home[0]) < 0.005 and abs(pose.position.z - home[2]) < 0.005
         assert list(joints.latest.name) == list(panda_constants.ALL_JOINTS)
         tf = client.record(TFMessage, "/tf", keep=1000)

@@ -12,7 +12,6 @@ from rosgraph_msgs.msg import Clock
 from sim_client.processes import BIN, running
 
 
-
 def sim(*args: str, timeout: float = 90.0) -> subprocess.CompletedProcess:
     return subprocess.run([str(BIN / "sim"), *args], capture_output=True, text=True, timeout=timeout)
 

@@ -14,7 +14,6 @@ from sim_client.processes import BIN
 from sim_client.scenario import artifacts, schema
 from sim_client.scenario.runner import RunOptions, run
 
-
 STAND = """\
 name: stand_short
 robot: g1
