@@ -250,9 +250,12 @@ class InLoopPlugins:
         msg.object_lift = float(progress.object_lift)
 
     # ----- state publishing and resets ---------------------------------------------------
-    def after_step(self) -> None:
-        """Under the lock, after each stretch of stepping: goals that started or ended are reported at once."""
-        self.skills.publish_changed()
+    def after_step(self) -> int:
+        """Under the lock, after each stretch of stepping: goals that started or ended are reported at once.
+
+        Returns how many goals ended.
+        """
+        return self.skills.publish_changed()
 
     def publish_state(self, now: float) -> None:
         """Under the lock, when controller state topics are due."""

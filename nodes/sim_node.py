@@ -480,7 +480,7 @@ class SimNode(LifecycleNode):
                 target = self.sim.time + request.steps * self.sim.control_timestep - 1e-9
                 try:
                     while self.sim.time < target:
-                        self._advance_to_next_event_bounded(target)
+                        response.goals_ended += self._advance_to_next_event_bounded(target)
                 except Exception as error:  # noqa: BLE001 - a failed step is answered, never left hanging
                     self._recover(error)
                     response.success = False
@@ -492,7 +492,8 @@ class SimNode(LifecycleNode):
             response.sim_time = self.sim.time
         return response
 
-    def _advance_to_next_event_bounded(self, target: float) -> None:
+    def _advance_to_next_event_bounded(self, target: float) -> int:
+        """One stretch of stepping toward ``target`` [s]; returns how many skill goals ended in it."""
         sim = self.sim
         assert sim is not None and self.plugins is not None
         due = min(self._next_stop(), target)
@@ -500,8 +501,9 @@ class SimNode(LifecycleNode):
         steps = max(1, math.ceil((due - sim.time) / dt - 1e-6))
         self.plugins.before_step(sim.time)
         sim.step_physics(steps)
-        self.plugins.after_step()
+        ended = self.plugins.after_step()
         self._publish_due(sim.time)
+        return ended
 
     def destroy(self) -> None:
         self._stop_thread()

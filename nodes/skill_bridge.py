@@ -111,8 +111,11 @@ class SkillBridge:
         return max((host.epoch for host in self._hosts.values()), default=0)
 
     # ----- states ------------------------------------------------------------------------------
-    def publish_changed(self) -> None:
-        """Under the lock: publish the goals that started, ended or were asked to cancel since last time."""
+    def publish_changed(self) -> int:
+        """Under the lock: publish the goals that started, ended or were asked to cancel since last time.
+
+        Returns how many of them have ended.
+        """
         runs: list[SkillRun] = self._refused
         self._refused = []
         for host in set(self._hosts.values()):
@@ -120,6 +123,7 @@ class SkillBridge:
         if runs and self._pub.get_subscription_count() > 0:
             for run in runs:
                 self._pub.publish(self._state(run))
+        return sum(1 for run in runs if run.status.terminal)
 
     def publish_all(self) -> None:
         """Under the lock, at state_rate: the latest goal of every resource, while anyone listens."""

@@ -35,6 +35,7 @@ from sim_bridge.errors import InvalidGoalError
 from sim_interfaces.msg import SkillCommand, SkillState
 
 ACK_TIMEOUT_S = 10.0  # wall seconds for /sim to report a goal it was sent
+CANCEL_ACK_S = 2.0  # wall seconds a cancel request waits for /sim to report it has taken the cancel
 RESEND_PERIOD_S = 1.0  # a START not yet reported is sent again (a message sent before discovery is lost)
 _STATUS_NAMES = {SkillState.SUCCEEDED: "SUCCEEDED", SkillState.ABORTED: "ABORTED", SkillState.CANCELED: "CANCELED"}
 _seq = itertools.count(1 + (os.getpid() % 4096) * 1_000_000)  # unique per process; /sim echoes it
@@ -58,6 +59,7 @@ class _Goal:
     sent_at: float = field(default_factory=time.monotonic)
     acked: bool = False
     last_feedback: float = float("-inf")
+    cancel_seen: threading.Event = field(default_factory=threading.Event)
 
 
 class SkillActionServer:
@@ -123,6 +125,9 @@ class SkillActionServer:
         if goal is not None:
             self._send(SkillCommand(request=SkillCommand.CANCEL, skill=self.binding.name, resource=goal.resource,
                                     goal_seq=goal.seq))
+            # Answered once /sim has the cancel (the robot is stopping), so a client that steps a paused
+            # sim after the answer gets the same run every time. Bounded: a silent /sim is the watchdog's.
+            goal.cancel_seen.wait(CANCEL_ACK_S)
         return CancelResponse.ACCEPT
 
     def update_settings(self) -> None:
@@ -141,6 +146,8 @@ class SkillActionServer:
         if goal is None or goal.done.done():
             return
         goal.acked = True
+        if state.cancel_requested or state.status != SkillState.RUNNING:
+            goal.cancel_seen.set()
         action = self.binding.action_type
         if state.status == SkillState.RUNNING:
             now = seconds_of(state.header.stamp)
@@ -171,6 +178,7 @@ class SkillActionServer:
             self._node.get_logger().info(text)
         else:
             self._node.get_logger().warning(text)
+        goal.cancel_seen.set()
         goal.done.set_result(result)
 
     def _watchdog(self) -> None:

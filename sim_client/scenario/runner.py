@@ -8,6 +8,7 @@ follows ``/clock``.
 
 from __future__ import annotations
 
+import contextlib
 import datetime
 import math
 import pathlib
@@ -49,6 +50,7 @@ from sim_interfaces.srv import Push, Reset, Step as StepSrv
 CHUNK_S = 0.02  # sim time advanced between checks [s]
 STARTUP_WALL_S = 90.0
 SERVICE_WALL_S = 30.0
+GOAL_END_WALL_S = 5.0  # wall seconds to wait for the results of goals /sim reports ended
 
 
 class StepFailure(RuntimeError):
@@ -191,10 +193,19 @@ class ScenarioRun:
         return self.session.wait_future(client.call_async(request), SERVICE_WALL_S, f"response of {what}")
 
     def _step_sim(self, steps: int) -> float:
+        done_before = sum(1 for handle in self.goals.values() if handle.done)
         response = self._call(self._step, StepSrv.Request(steps=steps), "/sim/step")
         if not response.success:
             raise StepFailure(f"/sim/step refused: {response.message}")
         self._sim_now = max(self._sim_now, response.sim_time)
+        if response.goals_ended:
+            # Goals ended in these steps: take their results before stepping on, so a goal's end is
+            # seen at the same sim time in every run. (Bounded: a goal of another client ends too.)
+            def arrived() -> bool:
+                return sum(1 for handle in self.goals.values() if handle.done) >= done_before + response.goals_ended
+
+            with contextlib.suppress(WaitTimeout):
+                self.session.wait_for(arrived, GOAL_END_WALL_S, "the results of goals that ended")
         return float(response.sim_time)
 
     def start(self) -> None:
@@ -347,6 +358,11 @@ class ScenarioRun:
             return
         if step.cancel is not None:
             self.cancel_triggers[step.id] = step.cancel
+        if self.lock_step:
+            # Deterministic start: the paused sim applies the goal at the sim time it was sent, and is
+            # not stepped on until the goal runs (its first feedback, measured in /sim) or has ended.
+            self.session.wait_for(lambda: handle.feedback is not None or handle.done, SERVICE_WALL_S,
+                                  f"goal {step.id} to start in /sim")
         if step.wait:
             self._wait_until(lambda: handle.done, step.timeout, f"for the result of goal {step.id}", step.line)
             self._tick()

@@ -1,0 +1,62 @@
+"""Same scenario, same numbers: lock-stepped runs with the action servers in the loop are repeatable.
+
+Each scenario runs twice, each time with its own freshly started nodes. Every number of the two
+reports (the goals' results and last feedback, the sim times at which they were sent, the measured
+values of the expectations) must agree to 1e-6. Not compared: the sim time at which the runner *saw*
+a goal end, which is quantized by its stepping (the goal's own end, in its result, is compared).
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import pathlib
+from typing import Any
+
+import pytest
+
+from sim_client.scenario import schema
+from sim_client.scenario.runner import RunOptions, run
+
+TOLERANCE = 1e-6
+
+
+def _numbers(value: Any, path: str = "") -> dict[str, float]:
+    """Every number in a nested report, keyed by its path."""
+    found: dict[str, float] = {}
+    if isinstance(value, bool):
+        return found
+    if isinstance(value, (int, float)):
+        found[path] = float(value)
+    elif isinstance(value, dict):
+        for key, item in value.items():
+            found.update(_numbers(item, f"{path}.{key}"))
+    elif isinstance(value, (list, tuple)):
+        for index, item in enumerate(value):
+            found.update(_numbers(item, f"{path}[{index}]"))
+    return found
+
+
+def _outcome_numbers(report: dict[str, Any]) -> dict[str, float]:
+    goals = {goal_id: {k: v for k, v in goal.items() if k in ("result", "last_feedback", "sent_at",
+                                                               "feedback_count", "error_code")}
+             for goal_id, goal in report["goals"].items()}
+    measured = {e["name"]: e["measured"] for e in report["expectations"]}
+    return _numbers({"goals": goals, "measured": measured})
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["walk_2m", "navigate_around_obstacle", "pick_place_box"])
+def test_a_scenario_run_twice_gives_the_same_numbers(tmp_path: pathlib.Path, name: str) -> None:
+    reports = []
+    for attempt in range(2):
+        result: Any = run(schema.load(schema.find(name)), RunOptions(out=tmp_path / str(attempt), quiet=True),
+                          stream=io.StringIO())
+        assert result.passed, result.report
+        reports.append(result.report)
+    first, second = (_outcome_numbers(report) for report in reports)
+    assert first.keys() == second.keys()
+    assert len(first) >= 5, first  # the comparison has something to compare
+    differ = {key: (first[key], second[key]) for key in first
+              if not (math.isnan(first[key]) and math.isnan(second[key])) and abs(first[key] - second[key]) > TOLERANCE}
+    assert not differ, f"{name} differs between two runs: {differ}"
