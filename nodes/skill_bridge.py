@@ -126,13 +126,14 @@ class SkillBridge:
         return sum(1 for run in runs if run.status.terminal)
 
     def publish_all(self) -> None:
-        """Under the lock, at state_rate: the latest goal of every resource, while anyone listens."""
+        """Under the lock, at state_rate: every running goal, while anyone listens (ended ones were published as they ended)."""
         if self._pub.get_subscription_count() == 0:
             return
         self.publish_changed()
         for host in set(self._hosts.values()):
             for run in host.runs():
-                self._pub.publish(self._state(run))
+                if run.status is SkillStatus.RUNNING:
+                    self._pub.publish(self._state(run))
 
     def _state(self, run: SkillRun) -> SkillState:
         now = self._sim.time

@@ -11,6 +11,7 @@ reset epoch in its state. A goal waits without holding a thread (``async`` execu
 from __future__ import annotations
 
 import itertools
+import math
 import os
 import threading
 import time
@@ -230,8 +231,13 @@ def skill_servers(node: Node, robot: RobotSpec, actions: dict[str, str], setting
             server.on_state(state)
 
     qos = QoSProfile(depth=100)
+    # Subscribed for the node's life (discovery is done before the first goal, which then gets its
+    # first feedback at once); /sim publishes states only while a goal runs or changes, so an idle
+    # server receives nothing.
     states: OnDemandTopic[SkillState] = OnDemandTopic(node, SkillState, SKILL_STATE_TOPIC, qos, ReentrantCallbackGroup(),
-                                                       on_message=on_state)
+                                                       on_message=on_state, linger_s=math.inf)
+    with states.held():
+        pass
     commands = node.create_publisher(SkillCommand, SKILL_COMMAND_TOPIC, qos)
     for skill, action_name in actions.items():
         servers[skill] = SkillActionServer(node, BINDINGS[skill], action_name, robot, settings, feedback_period, states, commands)
