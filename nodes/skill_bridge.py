@@ -19,8 +19,8 @@ from nodes.conversions import set_time
 from nodes.skill_protocol import BINDINGS, SKILL_COMMAND_TOPIC, SKILL_STATE_TOPIC, SkillContext, fill_message, result_message
 from sim_bridge import Simulation
 from sim_bridge.errors import InvalidGoalError
-from sim_bridge.skills import SkillHost, SkillOutcome, SkillRun, SkillStatus
-from sim_bridge.skills.base import INVALID_GOAL
+from sim_bridge.skills import SkillHost, SkillRun, SkillStatus
+from sim_bridge.skills.host import refused_run
 from sim_interfaces.msg import SkillCommand, SkillState
 
 QOS = QoSProfile(depth=100)
@@ -101,9 +101,7 @@ class SkillBridge:
                 host.start(msg.goal_seq, skill, self._sim.model, self._sim.data)
                 return
         self._node.get_logger().warning(f"{msg.skill} goal {msg.goal_seq} on {msg.resource!r} refused: {reason}")
-        self._refused.append(SkillRun(msg.goal_seq, None, msg.skill, msg.resource, self.epoch, now,
-                                      status=SkillStatus.ABORTED, outcome=SkillOutcome.aborted(INVALID_GOAL, reason),
-                                      ended_at=now))
+        self._refused.append(refused_run(msg.goal_seq, msg.skill, msg.resource, self.epoch, reason, now))
 
     @property
     def epoch(self) -> int:

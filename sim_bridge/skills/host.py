@@ -52,6 +52,12 @@ class SkillRun:
     cancel_requested: bool = False
 
 
+def refused_run(seq: int, skill_name: str, resource: str, epoch: int, reason: str, now: float) -> SkillRun:
+    """A goal that never started: ABORTED ``INVALID_GOAL`` with the reason, at sim time ``now`` [s]."""
+    return SkillRun(seq, None, skill_name, resource, epoch, now, status=SkillStatus.ABORTED,
+                    outcome=SkillOutcome.aborted(INVALID_GOAL, reason), ended_at=now)
+
+
 class SkillHost:
     """A controller wrapper that runs goal skills before ``inner`` in the same control step.
 
@@ -65,7 +71,6 @@ class SkillHost:
         self._runs: dict[str, SkillRun] = {}
         self._running: list[SkillRun] = []
         self._changed: list[SkillRun] = []
-        self._data: mujoco.MjData | None = None
 
     # ----- Controller ----------------------------------------------------------------------
     @property
@@ -74,7 +79,6 @@ class SkillHost:
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """After the simulation was reset: end every running goal with SIM_FAULT, count the epoch."""
-        self._data = data
         for run in list(self._running):
             assert run.skill is not None
             run.skill.stop_now(model, data)
@@ -88,7 +92,6 @@ class SkillHost:
             release(model, data)
 
     def update(self, model: mujoco.MjModel, data: mujoco.MjData, control_dt: float) -> None:
-        self._data = data
         if self._running:
             for run in list(self._running):
                 assert run.skill is not None
@@ -105,7 +108,6 @@ class SkillHost:
         A skill that refuses to start (``InvalidGoalError``: the goal cannot be run from this state)
         ends at once, ABORTED ``INVALID_GOAL`` with the reason; a goal it preempted has ended too.
         """
-        self._data = data
         now = float(data.time)
         previous = self.running(skill.resource)
         if previous is not None:
@@ -124,8 +126,7 @@ class SkillHost:
 
     def refuse(self, seq: int, skill_name: str, resource: str, reason: str, now: float) -> SkillRun:
         """Record a goal that could not start (ABORTED ``INVALID_GOAL``); the resource's running goal is untouched."""
-        run = SkillRun(seq, None, skill_name, resource, self.epoch, now, status=SkillStatus.ABORTED,
-                       outcome=SkillOutcome.aborted(INVALID_GOAL, reason), ended_at=now)
+        run = refused_run(seq, skill_name, resource, self.epoch, reason, now)
         if self.running(resource) is None:
             self._runs[resource] = run
         self._changed.append(run)

@@ -93,12 +93,12 @@ class WalkGoal:
             raise InvalidGoalError(f"timeout must be >= 0 s (0 = automatic), got {self.timeout_s}")
 
 
+@dataclass(frozen=True)
 class _Stop:
     """Why a locomotion skill is stopping, and what it reports once the robot stands."""
 
-    def __init__(self, outcome: SkillOutcome, started_at: float) -> None:
-        self.outcome = outcome
-        self.started_at = started_at
+    outcome: SkillOutcome
+    started_at: float  # sim time [s]
 
 
 class _LocomotionSkill:
@@ -187,7 +187,6 @@ class WalkSkill(_LocomotionSkill):
         self._start = (0.0, 0.0)
         self._heading = 0.0
         self._forward = (1.0, 0.0)
-        self._arrived = False
 
     def start(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         self._begin(model, data)
@@ -216,10 +215,10 @@ class WalkSkill(_LocomotionSkill):
         if outcome is not None or self._stop is not None:
             return outcome
         sign = 1.0 if self.goal.distance_m > 0 else -1.0
-        remaining = self.walker.stop_point_remaining() if self._steps() > 0 else abs(self.goal.distance_m)
-        if self._steps() > 0 and abs(remaining) <= ARRIVAL_TOLERANCE_M:
+        stepped = self._steps() > 0  # the walking frame is planned from the first footstep on
+        remaining = self.walker.stop_point_remaining() if stepped else abs(self.goal.distance_m)
+        if stepped and abs(remaining) <= ARRIVAL_TOLERANCE_M:
             self._stop_with(SkillOutcome.succeeded(""))  # the message is written when it stands
-            self._arrived = True
             return None
         to_go = abs(remaining)
         speed = min(self._speed(), max(MIN_APPROACH_SPEED_MPS, math.sqrt(2.0 * APPROACH_DECELERATION * to_go)))
@@ -239,10 +238,11 @@ class WalkSkill(_LocomotionSkill):
 
     def feedback(self, data: mujoco.MjData) -> Values:
         walked = self._walked(data)[0]
+        status = self.walker.status()
         return {
             "distance_walked": walked,
-            "current_speed": self.walker.status().measured.vx,
-            "steps_taken": max(self._steps(), 0),
+            "current_speed": status.measured.vx,
+            "steps_taken": max(status.steps_taken - self._steps0, 0),
             "percent_complete": float(np.clip(100.0 * walked / self.goal.distance_m, 0.0, 100.0)),
             "elapsed": self._now - self._t0,
         }
@@ -315,7 +315,7 @@ class NavigateSkill(_LocomotionSkill):
 
     def update(self, model: mujoco.MjModel, data: mujoco.MjData, control_dt: float) -> SkillOutcome | None:
         if self._failed_plan is not None:
-            return self._no_path(self._failed_plan, "")
+            return self._no_path(self._failed_plan)
         outcome = self._supervise(data, "while navigating")
         if outcome is not None or self._stop is not None:
             if outcome is not None and outcome.code == "SUCCESS":
@@ -347,11 +347,11 @@ class NavigateSkill(_LocomotionSkill):
         self.walker.set_velocity_command(command.vx, 0.0, command.wz)
         return None
 
-    def _no_path(self, error: NoPathError, prefix: str) -> SkillOutcome:
+    def _no_path(self, error: NoPathError) -> SkillOutcome:
         inflated = self._inflated
         goal_blocked = inflated is not None and not inflated.is_free(self.goal.x_m, self.goal.y_m)
         code = "GOAL_IN_OBSTACLE" if goal_blocked else "NO_VALID_PATH"
-        return SkillOutcome.aborted(code, f"{prefix}{error}")
+        return SkillOutcome.aborted(code, str(error))
 
     def _timeout_message(self) -> str:
         return f"timed out after {self._timeout:.0f} s of sim time"
