@@ -18,29 +18,46 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import mujoco
+import numpy as np
 from geometry_msgs.msg import Pose as PoseMsg, PoseStamped
 
 from nodes.conversions import duration_msg, set_pose, set_time, yaw_of
 from robot_models import RobotSpec, WalkingLimits
+from sim_bridge import Simulation
+from sim_bridge.arm import PickPlaceGoal
 from sim_bridge.errors import InvalidGoalError
 from sim_bridge.skills import LEGS, NavigateGoal, NavigateSkill, Skill, SkillOutcome, Values, WalkGoal, WalkSkill
+from sim_bridge.skills.arm import MoveArmGoal, MoveArmSkill, PickPlaceSkill
 from sim_bridge.state import Pose
-from sim_interfaces.action import NavigateToPose, Walk
+from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, Walk
 
 SKILL_COMMAND_TOPIC = "/sim/skill_command"
 SKILL_STATE_TOPIC = "/sim/skill_state"
 WORLD_FRAMES = ("", "world", "odom", "map")
+ARM_FRAMES = ("", "world", "odom")  # and the robot's base body
+PICK_POSE_RADIUS_M = 0.03  # a pick_pose names the object whose centre is this close
+# The /arm parameters the arm skills read, with their defaults (a START without settings uses these).
+ARM_SETTINGS = {
+    "max_velocity_scaling": 0.5, "max_linear_speed": 0.5, "max_angular_speed": 1.5, "gripper_force": 20.0,
+    "approach_height": 0.10, "lift_height": 0.15, "placement_tolerance": 0.005, "move_timeout": 30.0,
+    "pick_place_timeout": 90.0,
+}
 
 
+@dataclass
 class SkillContext:
-    """What ``/sim`` offers a binding to build a skill: the robot and its in-loop controllers."""
+    """What ``/sim`` offers a binding to build a skill: the simulation and its in-loop controllers."""
 
-    def __init__(self, robot: RobotSpec, walker: Any = None, grid: Any = None, arms: Any = None, pick_place: Any = None) -> None:
-        self.robot = robot
-        self.walker = walker
-        self.grid = grid
-        self.arms = arms
-        self.pick_place = pick_place
+    sim: Simulation
+    walker: Any = None  # WalkingController
+    grid: Any = None  # OccupancyGrid of the scene's static obstacles
+    arms: Any = None  # ArmController
+    pick_place: Any = None  # PickPlace
+
+    @property
+    def robot(self) -> RobotSpec:
+        return self.sim.robot
 
 
 @dataclass(frozen=True)
@@ -88,8 +105,6 @@ def _navigate_goal(goal: NavigateToPose.Goal, robot: RobotSpec) -> NavigateGoal:
     if goal.pose.header.frame_id not in WORLD_FRAMES:
         raise InvalidGoalError(f"unknown frame {goal.pose.header.frame_id!r}; "
                                f"allowed: {', '.join(f or '(empty)' for f in WORLD_FRAMES)}")
-    import numpy as np
-
     return NavigateGoal(p.x, p.y, yaw_of(np.array([o.w, o.x, o.y, o.z])))
 
 
@@ -97,11 +112,141 @@ def _build_navigate(goal: NavigateToPose.Goal, settings: Mapping[str, float], co
     return NavigateSkill(context.walker, context.robot.base_body, context.grid, _navigate_goal(goal, context.robot), settings)
 
 
+# ----- MoveArm and PickPlace ------------------------------------------------------------------
+def arm_name(requested: str, robot: RobotSpec) -> str:
+    name = requested or robot.default_end_effector
+    if name not in robot.end_effector_sites:
+        raise InvalidGoalError(f"unknown end_effector {requested!r}; known: {', '.join(robot.end_effector_sites) or 'none'} "
+                               f"(empty = {robot.default_end_effector or 'none'})")
+    return name
+
+
+def _finite_numbers(**values: float) -> None:
+    bad = [name for name, value in values.items() if not math.isfinite(value)]
+    if bad:
+        raise InvalidGoalError(f"{', '.join(bad)} must be finite numbers")
+
+
+def _check_arm_frame(frame: str, robot: RobotSpec, what: str) -> None:
+    if frame not in ARM_FRAMES and frame != robot.base_body:
+        raise InvalidGoalError(f"unknown {what} frame {frame!r}; allowed: world (or empty), odom, {robot.base_body}")
+
+
+def _validate_move(goal: MoveArm.Goal, robot: RobotSpec) -> str:
+    _finite_numbers(position_tolerance=goal.position_tolerance, orientation_tolerance=goal.orientation_tolerance,
+                    max_velocity_scaling=goal.max_velocity_scaling, timeout=goal.timeout)
+    if goal.position_tolerance <= 0.0:
+        raise InvalidGoalError(f"position_tolerance must be > 0 m, got {goal.position_tolerance}")
+    if goal.orientation_tolerance < 0.0:
+        raise InvalidGoalError(f"orientation_tolerance must be >= 0 rad (0 = position only), got {goal.orientation_tolerance}")
+    if not 0.0 <= goal.max_velocity_scaling <= 1.0:
+        raise InvalidGoalError(f"max_velocity_scaling must be in (0, 1] (0 = default), got {goal.max_velocity_scaling}")
+    if goal.timeout < 0.0:
+        raise InvalidGoalError(f"timeout must be >= 0 s (0 = default), got {goal.timeout}")
+    arm = arm_name(goal.end_effector, robot)
+    p, o = goal.target.pose.position, goal.target.pose.orientation
+    if not all(math.isfinite(v) for v in (p.x, p.y, p.z, o.w, o.x, o.y, o.z)):
+        raise InvalidGoalError("target pose has NaN or infinite values")
+    if math.sqrt(o.w ** 2 + o.x ** 2 + o.y ** 2 + o.z ** 2) < 1e-6 and goal.orientation_tolerance != 0.0:
+        raise InvalidGoalError("target orientation quaternion cannot be normalised (norm 0); "
+                               "give a unit quaternion, or orientation_tolerance 0 for position only")
+    _check_arm_frame(goal.target.header.frame_id, robot, "target")
+    return arm
+
+
+def _in_world(pose: PoseMsg, frame: str, sim: Simulation) -> Pose:
+    """A pose given in ``frame`` (world, odom or the robot's base body), in the world frame, from the sim's state."""
+    p, o = pose.position, pose.orientation
+    quat = np.array([o.w, o.x, o.y, o.z])
+    norm = float(np.linalg.norm(quat))
+    local = Pose(np.array([p.x, p.y, p.z]), quat / norm if norm >= 1e-6 else np.array([1.0, 0.0, 0.0, 0.0]))
+    if frame in ARM_FRAMES:
+        return local
+    return compose(sim.body_pose(frame), local)
+
+
+def compose(parent: Pose, child: Pose) -> Pose:
+    """``child`` given in ``parent``'s frame, expressed in the frame ``parent`` is given in."""
+    rotation = np.empty(9)
+    mujoco.mju_quat2Mat(rotation, parent.orientation_wxyz)
+    orientation = np.empty(4)
+    mujoco.mju_mulQuat(orientation, parent.orientation_wxyz, child.orientation_wxyz)
+    return Pose(parent.position + rotation.reshape(3, 3) @ child.position, orientation)
+
+
+def _setting(settings: Mapping[str, float], name: str) -> float:
+    return float(settings.get(name, ARM_SETTINGS[name]))
+
+
+def _build_move(goal: MoveArm.Goal, settings: Mapping[str, float], context: SkillContext) -> Skill:
+    arm = _validate_move(goal, context.robot)
+    scaling = goal.max_velocity_scaling or _setting(settings, "max_velocity_scaling")
+    target = _in_world(goal.target.pose, goal.target.header.frame_id, context.sim)
+    return MoveArmSkill(context.arms, MoveArmGoal(
+        arm, target, goal.position_tolerance, goal.orientation_tolerance, scaling * _setting(settings, "max_linear_speed"),
+        scaling * _setting(settings, "max_angular_speed"), goal.timeout or _setting(settings, "move_timeout")))
+
+
+def _validate_pick(goal: PickPlace.Goal, robot: RobotSpec) -> str:
+    if not robot.objects or robot.grasp is None:
+        raise InvalidGoalError(f"robot {robot.name!r} has no objects to pick")
+    arm = arm_name(goal.end_effector, robot)
+    numbers = {"grasp_force": goal.grasp_force, "approach_height": goal.approach_height,
+               "lift_height": goal.lift_height, "timeout": goal.timeout}
+    bad = [name for name, value in numbers.items() if not math.isfinite(value) or value < 0.0]
+    if bad:
+        raise InvalidGoalError(f"{', '.join(bad)} must be finite and >= 0 (0 = the parameter's default)")
+    if goal.grasp_force > robot.grasp.max_force_n:
+        raise InvalidGoalError(f"grasp_force must be <= {robot.grasp.max_force_n:g} N per finger, got {goal.grasp_force}")
+    if goal.object_id:
+        if goal.object_id not in robot.objects:
+            raise InvalidGoalError(f"unknown object {goal.object_id!r}; objects: {', '.join(robot.objects)}")
+    else:
+        p = goal.pick_pose.pose.position
+        if not all(math.isfinite(v) for v in (p.x, p.y, p.z)):
+            raise InvalidGoalError("give object_id, or a finite pick_pose")
+        _check_arm_frame(goal.pick_pose.header.frame_id, robot, "pick_pose")
+    if goal.place_pose.header.frame_id not in ARM_FRAMES:
+        raise InvalidGoalError(f"place_pose frame {goal.place_pose.header.frame_id!r} is not allowed; use world (or empty)")
+    p = goal.place_pose.pose.position
+    if not all(math.isfinite(v) for v in (p.x, p.y, p.z)):
+        raise InvalidGoalError("place_pose has NaN or infinite values")
+    return arm
+
+
+def _object_at(goal: PickPlace.Goal, sim: Simulation) -> str:
+    """The object whose centre is within PICK_POSE_RADIUS_M of the goal's pick_pose."""
+    pick = _in_world(goal.pick_pose.pose, goal.pick_pose.header.frame_id, sim).position
+    distances = {name: float(math.dist(pick, sim.body_pose(name).position)) for name in sim.robot.objects}
+    name, distance = min(distances.items(), key=lambda item: item[1])
+    if distance > PICK_POSE_RADIUS_M:
+        raise InvalidGoalError(f"no object within {PICK_POSE_RADIUS_M * 100:g} cm of pick_pose "
+                               f"(nearest: {name} at {distance:.3f} m)")
+    return name
+
+
+def _build_pick(goal: PickPlace.Goal, settings: Mapping[str, float], context: SkillContext) -> Skill:
+    arm = _validate_pick(goal, context.robot)
+    if context.pick_place is None:
+        raise InvalidGoalError(f"robot {context.robot.name!r} has no objects to pick")
+    p = goal.place_pose.pose.position
+    task = PickPlaceGoal(
+        object_name=goal.object_id or _object_at(goal, context.sim), place_position=(p.x, p.y, p.z), arm=arm,
+        approach_height=goal.approach_height or _setting(settings, "approach_height"),
+        lift_height=goal.lift_height or _setting(settings, "lift_height"),
+        grip_force=goal.grasp_force or _setting(settings, "gripper_force"),
+        placement_tolerance=_setting(settings, "placement_tolerance"))
+    return PickPlaceSkill(context.pick_place, task, goal.timeout or _setting(settings, "pick_place_timeout"))
+
+
 BINDINGS: dict[str, SkillBinding] = {
     binding.name: binding
     for binding in (
         SkillBinding("walk", Walk, lambda _goal, _robot: LEGS, _walk_goal, _build_walk),
         SkillBinding("navigate_to_pose", NavigateToPose, lambda _goal, _robot: LEGS, _navigate_goal, _build_navigate),
+        SkillBinding("move_arm", MoveArm, lambda goal, robot: arm_name(goal.end_effector, robot), _validate_move, _build_move),
+        SkillBinding("pick_place", PickPlace, lambda goal, robot: arm_name(goal.end_effector, robot), _validate_pick,
+                     _build_pick),
     )
 }
 

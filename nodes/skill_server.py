@@ -60,6 +60,7 @@ class _Goal:
     sent_at: float = field(default_factory=time.monotonic)
     acked: bool = False
     last_feedback: float = float("-inf")
+    milestone: int = -1
     cancel_seen: threading.Event = field(default_factory=threading.Event)
 
 
@@ -152,8 +153,9 @@ class SkillActionServer:
         action = self.binding.action_type
         if state.status == SkillState.RUNNING:
             now = seconds_of(state.header.stamp)
-            if now - goal.last_feedback >= self._feedback_period() or goal.last_feedback == float("-inf"):
-                goal.last_feedback = now
+            due = now - goal.last_feedback >= self._feedback_period() or state.milestone != goal.milestone
+            if due:  # at feedback_rate, the first at once, and at every milestone (e.g. a new stage)
+                goal.last_feedback, goal.milestone = now, state.milestone
                 if state.feedback:
                     goal.handle.publish_feedback(deserialize_message(bytes(state.feedback), action.Feedback))
             return

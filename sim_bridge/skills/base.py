@@ -78,6 +78,9 @@ class Skill(Protocol):
         name: the skill's name (``"walk"``, ``"navigate_to_pose"``, ``"move_arm"``, ``"pick_place"``).
         resource: what it owns while it runs (``"legs"``, an arm name); one goal per resource.
         pose_frame: the frame of the poses in its progress and result values.
+
+    A skill may also have an integer ``milestone`` (PickPlace: its stage): each change of it is
+    reported as feedback whatever the feedback rate.
     """
 
     name: str

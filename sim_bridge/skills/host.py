@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import mujoco
 
 from sim_bridge.controller import Controller
-from sim_bridge.errors import InvalidGoalError
+from sim_bridge.errors import InvalidGoalError, UnknownNameError
 from sim_bridge.skills.base import INVALID_GOAL, PREEMPTED, SIM_FAULT, Skill, SkillOutcome, SkillStatus, Values
 
 
@@ -105,7 +105,7 @@ class SkillHost:
     def start(self, seq: int, skill: Skill, model: mujoco.MjModel, data: mujoco.MjData) -> SkillRun:
         """Start ``skill`` as goal ``seq`` on its resource, preempting the goal running there.
 
-        A skill that refuses to start (``InvalidGoalError``: the goal cannot be run from this state)
+        A skill that refuses to start (``InvalidGoalError``, ``UnknownNameError``: the goal cannot be run from this state)
         ends at once, ABORTED ``INVALID_GOAL`` with the reason; a goal it preempted has ended too.
         """
         now = float(data.time)
@@ -116,7 +116,7 @@ class SkillHost:
             self._end(previous, SkillOutcome.aborted(PREEMPTED, "preempted by a newer goal"), data)
         try:
             skill.start(model, data)
-        except InvalidGoalError as error:
+        except (InvalidGoalError, UnknownNameError) as error:
             return self.refuse(seq, skill.name, skill.resource, str(error), now)
         run = SkillRun(seq, skill, skill.name, skill.resource, self.epoch, now)
         self._runs[skill.resource] = run

@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import math
 
+import mujoco
+import numpy as np
 import pytest
 from action_msgs.msg import GoalStatus
 from nav_msgs.msg import Odometry
 
+import robot_models
+from nodes.conversions import set_pose
 from sim_interfaces.action import MoveArm
-from sim_interfaces.msg import ArmState
 from tests.ros.actions import ready_client, result, send
 from tests.ros.processes import running
 
@@ -19,16 +22,13 @@ pytestmark = pytest.mark.slow
 def test_g1_right_arm_reaches_a_pose_while_the_robot_stands(client):
     with running(["bringup", "--robot", "g1"]):
         move_arm = ready_client(client, MoveArm, "/move_arm", timeout=90.0)
-        states = client.record(ArmState, "/sim/arm_state", keep=100)
         odom = client.record(Odometry, "/odom", keep=10_000)
-        client.wait_for(lambda: any(s.arm == "right_arm" for s in states.messages()) and odom.count, 30.0,
-                        "/sim/arm_state and /odom")
-        hand = [s for s in states.messages() if s.arm == "right_arm"][-1].current
+        client.wait_for(lambda: odom.count, 30.0, "/odom")
         start_height = odom.latest.pose.pose.position.z
         goal = MoveArm.Goal(end_effector="right_arm", position_tolerance=0.001, orientation_tolerance=0.01,
                             max_velocity_scaling=0.3)
         goal.target.header.frame_id = "world"
-        goal.target.pose = hand
+        set_pose(goal.target.pose, *_right_hand_at_the_keyframe())  # the robot stands at its keyframe
         goal.target.pose.position.x += 0.15
         goal.target.pose.position.y += 0.05
         goal.target.pose.position.z += 0.15
@@ -44,3 +44,15 @@ def test_g1_right_arm_reaches_a_pose_while_the_robot_stands(client):
         bad = MoveArm.Goal(end_effector="tail", position_tolerance=0.001)
         bad.target.pose.orientation.w = 1.0
         assert not send(client, move_arm, bad).handle.accepted
+
+
+def _right_hand_at_the_keyframe() -> tuple:
+    """World position and orientation (w, x, y, z) of the G1's right tool point in its standing keyframe."""
+    robot = robot_models.load("g1")
+    data = mujoco.MjData(robot.model)
+    mujoco.mj_resetDataKeyframe(robot.model, data, robot.model.key(robot.default_keyframe).id)
+    mujoco.mj_forward(robot.model, data)
+    site = data.site(robot.end_effector_sites["right_arm"])
+    quat = np.empty(4)
+    mujoco.mju_mat2Quat(quat, site.xmat)
+    return site.xpos.copy(), quat
