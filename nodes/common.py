@@ -1,22 +1,18 @@
 """What every server node of the project shares: sim time by default, the robot name from /sim,
-and a small latest-message box that execute callbacks can wait on with a deadline."""
+streams subscribed on demand, and the ``main`` that builds and spins a server."""
 
 from __future__ import annotations
 
 import contextlib
-import itertools
 import signal
 import sys
 import threading
 import time
-import traceback
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
 from typing import Any, Generic, TypeVar
 
 import rclpy
 from rcl_interfaces.srv import GetParameters
-from rclpy.action.server import ServerGoalHandle
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import SingleThreadedExecutor
@@ -165,101 +161,6 @@ class OnDemandTopic(Generic[MsgT]):
 
 class GoalRejected(Exception):
     """A goal that can never be executed; the message says why and what is allowed."""
-
-
-@dataclass
-class ActiveGoal:
-    """Bookkeeping of the goal that owns a resource (an arm, the legs)."""
-
-    seq: int
-    preempted: threading.Event = field(default_factory=threading.Event)
-
-
-class GoalOwnership:
-    """One goal per resource: claiming a resource preempts the goal that held it."""
-
-    def __init__(self, first_seq: int = 1) -> None:
-        self._owners: dict[str, ActiveGoal] = {}
-        self._lock = threading.Lock()
-        self._seq = itertools.count(first_seq)
-
-    def claim(self, resource: str) -> ActiveGoal:
-        with self._lock:
-            previous = self._owners.get(resource)
-            if previous is not None:
-                previous.preempted.set()
-            owner = ActiveGoal(seq=next(self._seq) & 0xFFFFFFFF)
-            self._owners[resource] = owner
-            return owner
-
-    def release(self, resource: str, owner: ActiveGoal) -> None:
-        with self._lock:
-            if self._owners.get(resource) is owner:
-                del self._owners[resource]
-
-    @contextlib.contextmanager
-    def owned(self, resource: str) -> Iterator[ActiveGoal]:
-        """Claim ``resource`` for the duration of a ``with`` block (preempting its previous goal)."""
-        owner = self.claim(resource)
-        try:
-            yield owner
-        finally:
-            self.release(resource, owner)
-
-
-def goal_validator(node: Node, action_name: str, validate: Callable[[Any], object]) -> Callable[[Any], Any]:
-    """A goal callback: accept when ``validate(goal)`` passes, reject (logging the reason) on GoalRejected."""
-    from rclpy.action import GoalResponse
-
-    def accept(goal: Any) -> GoalResponse:
-        try:
-            validate(goal)
-        except GoalRejected as reason:
-            node.get_logger().warning(f"{action_name} goal rejected: {reason}")
-            return GoalResponse.REJECT
-        return GoalResponse.ACCEPT
-
-    return accept
-
-
-def finish_goal(node: Node, goal_handle: ServerGoalHandle, result: Any, code: int, message: str,
-                abort: bool = False, cancel: bool = False) -> Any:
-    """Set a result's ``error_code``/``error_msg``, end the goal in the right state, log it."""
-    result.error_code = code
-    result.error_msg = message
-    if cancel:
-        goal_handle.canceled()
-    elif abort:
-        goal_handle.abort()
-    else:
-        goal_handle.succeed()
-    text = f"goal {bytes(goal_handle.goal_id.uuid).hex()[:8]} ended: {message}"
-    if code == 0 or cancel:
-        node.get_logger().info(text)
-    else:
-        node.get_logger().warning(text)
-    return result
-
-
-def guarded(node: Node, action_type: Any, execute: Callable[[ServerGoalHandle], Any]) -> Callable[[ServerGoalHandle], Any]:
-    """An execute callback that ends its goal ABORTED with SIM_FAULT and the reason if ``execute`` raises.
-
-    Without it, rclpy logs the exception and aborts the goal with an empty result, and the
-    client learns nothing about why.
-    """
-
-    def execute_guarded(goal_handle: ServerGoalHandle) -> Any:
-        try:
-            return execute(goal_handle)
-        except Exception as error:  # noqa: BLE001 - reported to the client, logged with its traceback
-            node.get_logger().error(f"{action_type.__name__} goal failed: {''.join(traceback.format_exception(error))}")
-            result = action_type.Result()
-            if goal_handle.is_active:
-                return finish_goal(node, goal_handle, result, action_type.Result.SIM_FAULT,
-                                   f"internal error in /{node.get_name()}: {type(error).__name__}: {error}", abort=True)
-            return result
-
-    return execute_guarded
 
 
 def spin_server(node_factory: Callable[[str, list[Parameter]], Node], node_name: str, args: list[str] | None) -> int:

@@ -138,7 +138,7 @@ class SkillBridge:
         binding = BINDINGS[run.skill_name] if run.skill_name in BINDINGS else None
         msg = SkillState(skill=run.skill_name, resource=run.resource, goal_seq=run.seq & 0xFFFFFFFF,
                          reset_epoch=self.epoch, start_epoch=run.epoch, status=int(run.status),
-                         cancel_requested=run.cancel_requested, milestone=int(getattr(run.skill, "milestone", 0)))
+                         cancel_requested=run.cancel_requested)
         set_time(msg.header.stamp, now if run.status is SkillStatus.RUNNING else run.ended_at)
         if run.outcome is not None:
             msg.message = run.outcome.message
@@ -148,6 +148,7 @@ class SkillBridge:
         frame = run.skill.pose_frame if run.skill is not None else "world"
         if run.status is SkillStatus.RUNNING:
             assert run.skill is not None
+            msg.milestone = int(getattr(run.skill, "milestone", 0))
             values = run.skill.feedback(self._sim.data)
             msg.feedback = serialize_message(fill_message(action.Feedback(), values, now, frame))
         else:

@@ -15,6 +15,7 @@ import math
 import os
 import threading
 import time
+import traceback
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
@@ -106,6 +107,18 @@ class SkillActionServer:
         return GoalResponse.ACCEPT
 
     async def _execute(self, handle: ServerGoalHandle) -> Any:
+        try:
+            return await self._run(handle)
+        except Exception as error:  # noqa: BLE001 - reported to the client as SIM_FAULT, logged with its traceback
+            self._node.get_logger().error(f"{self.binding.name} goal failed: {''.join(traceback.format_exception(error))}")
+            result = self.binding.action_type.Result()
+            result.error_code = self.binding.action_type.Result.SIM_FAULT
+            result.error_msg = f"internal error in /{self._node.get_name()}: {type(error).__name__}: {error}"
+            if handle.is_active:
+                handle.abort()
+            return result
+
+    async def _run(self, handle: ServerGoalHandle) -> Any:
         resource = self.binding.resource(handle.request, self._robot)
         settings = self._settings()
         command = SkillCommand(request=SkillCommand.START, skill=self.binding.name, resource=resource, goal_seq=_next_seq(),

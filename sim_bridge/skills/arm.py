@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from sim_bridge.arm import ArmController, PickPlace, PickPlaceFailure, PickPlaceGoal
+from sim_bridge.arm import ArmController, PickPlace, PickPlaceFailure, PickPlaceGoal, PickPlaceProgress
 from sim_bridge.arm.kinematics import rotation_error
 from sim_bridge.errors import InvalidGoalError
 from sim_bridge.skills.base import SkillOutcome, Values
@@ -187,14 +187,22 @@ class PickPlaceSkill(_ArmSkill):
         super().__init__(pick_place.arm, goal.arm, timeout_s)
         self.pick_place = pick_place
         self.goal = goal
+        self._last: PickPlaceProgress | None = None
+
+    def _progress(self) -> PickPlaceProgress:
+        """This goal's progress; after a reset (or a newer pick) dropped the run, the last one measured."""
+        if self._last is None or not self._last.done:
+            self._last = self.pick_place.progress()
+        return self._last
 
     @property
     def milestone(self) -> int:
-        return int(self.pick_place.progress().stage)
+        return int(self._progress().stage)
 
     def start(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         self.pick_place.start(self.goal)
         self._t0 = self._now = float(data.time)
+        self._last = None
 
     def stop_now(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         self._halt()
@@ -204,7 +212,7 @@ class PickPlaceSkill(_ArmSkill):
         super()._halt()
 
     def update(self, model: mujoco.MjModel, data: mujoco.MjData, control_dt: float) -> SkillOutcome | None:
-        progress = self.pick_place.progress()
+        progress = self._progress()
         if progress.done:
             if progress.success:
                 return SkillOutcome.succeeded(f"placed within {progress.placement_error * 1e3:.1f} mm")
@@ -213,10 +221,10 @@ class PickPlaceSkill(_ArmSkill):
         return self._tick(data)
 
     def _timeout_message(self) -> str:
-        return f"{super()._timeout_message()} in stage {self.pick_place.progress().stage.name}"
+        return f"{super()._timeout_message()} in stage {self._progress().stage.name}"
 
     def feedback(self, data: mujoco.MjData) -> Values:
-        progress = self.pick_place.progress()
+        progress = self._progress()
         return {
             "stage": int(progress.stage),
             "stage_name": progress.stage.name,
@@ -227,5 +235,5 @@ class PickPlaceSkill(_ArmSkill):
         }
 
     def result(self, data: mujoco.MjData) -> Values:
-        progress = self.pick_place.progress()
+        progress = self._progress()
         return {"final_object_pose": progress.object_pose, "placement_error": progress.placement_error}
