@@ -38,7 +38,7 @@ from sim_interfaces.msg import SkillCommand, SkillState
 
 ACK_TIMEOUT_S = 10.0  # wall seconds for /sim to report a goal it was sent
 CANCEL_ACK_S = 2.0  # wall seconds a cancel request waits for /sim to report it has taken the cancel
-RESEND_PERIOD_S = 1.0  # a START not yet reported is sent again (a message sent before discovery is lost)
+RESEND_PERIOD_S = 0.1  # a START not yet reported is sent again (a message sent before discovery is lost)
 _STATUS_NAMES = {SkillState.SUCCEEDED: "SUCCEEDED", SkillState.ABORTED: "ABORTED", SkillState.CANCELED: "CANCELED"}
 _seq = itertools.count(1 + (os.getpid() % 4096) * 1_000_000)  # unique per process; /sim echoes it
 _seq_lock = threading.Lock()
@@ -94,7 +94,10 @@ class SkillActionServer:
         self.server = ActionServer(
             node, binding.action_type, action_name, execute_callback=self._execute, goal_callback=self._accept,
             handle_accepted_callback=lambda handle: handle.execute(), cancel_callback=self._cancel, callback_group=group)
-        node.create_timer(RESEND_PERIOD_S, self._watchdog, callback_group=group, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        # Runs only while a START is unanswered (an idle server has no timer firing).
+        self._watchdog_timer = node.create_timer(RESEND_PERIOD_S, self._watchdog, callback_group=group,
+                                                 clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self._watchdog_timer.cancel()
 
     # ----- goal life ---------------------------------------------------------------------------
     def _accept(self, goal: Any) -> GoalResponse:
@@ -127,6 +130,7 @@ class SkillActionServer:
         goal = _Goal(handle, command.goal_seq, resource, command)
         with self._lock:
             self._goals[(resource, goal.seq)] = goal
+            self._watchdog_timer.reset()  # with the registration: the watchdog cannot miss this goal
         with self._states.held():
             self._send(command)
             try:
@@ -200,9 +204,11 @@ class SkillActionServer:
     def _watchdog(self) -> None:
         """Re-send unanswered STARTs; end goals /sim never answered (it is not running, or not this robot)."""
         now = time.monotonic()
-        for goal in self._running():
-            if goal.acked:
-                continue
+        with self._lock:
+            waiting = [goal for goal in self._goals.values() if not goal.acked and not goal.done.done()]
+            if not waiting:
+                self._watchdog_timer.cancel()
+        for goal in waiting:
             if now - goal.sent_at > ACK_TIMEOUT_S:
                 result = self.binding.action_type.Result()
                 result.error_code = self.binding.action_type.Result.SIM_FAULT
