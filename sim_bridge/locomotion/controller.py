@@ -27,6 +27,7 @@ import mujoco
 import numpy as np
 
 from robot_models import g1_constants as names
+from robot_models.g1 import WALKING as G1_WALKING
 from sim_bridge.errors import InvalidGoalError
 from sim_bridge.locomotion.params import GaitParameters
 from sim_bridge.locomotion.planner import (
@@ -65,9 +66,8 @@ LOAD_RAMP = 0.03  # time for a touching-down foot to take full load [s]
 REACH_X = (-0.20, 0.35)  # swing sole x relative to the stance sole, stance frame [m]
 REACH_LATERAL = (0.15, 0.40)  # outward distance between sole centres [m]
 SUPPORT_MARGIN = 0.01  # the desired CoP stays this far inside the sole [m]
-FALL_HEIGHT = 0.45  # pelvis height below which the robot has fallen [m]
-FALL_TILT = math.radians(50.0)
-_FALL_UP_Z = math.cos(FALL_TILT)  # the pelvis z axis's world z below which the robot has fallen
+FALL_HEIGHT = G1_WALKING.fall_height_m  # pelvis height below which the robot has fallen [m] (the robot's spec)
+_FALL_UP_Z = math.cos(G1_WALKING.fall_tilt_rad)  # the pelvis z axis's world z below which the robot has fallen
 HANDOVER_SPEED = 0.03  # CoM speed below which standing is handed back to the position servos [m/s]
 HANDOVER_DELAY = 0.5  # time standing still before the hand-over [s]
 VELOCITY_FILTER_TIME = 0.5  # [s]

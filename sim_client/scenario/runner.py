@@ -1,9 +1,10 @@
 """Run a scenario: bring up its nodes, drive sim time, run the steps, judge the expectations.
 
-By default (``rtf`` 0) the run is lock-stepped: the sim starts paused and the runner advances it
-in small chunks with ``/sim/step``, checking triggers and conditions between chunks, as fast as
-the machine allows. With ``rtf`` > 0 the sim runs free at that real-time factor and the runner
-follows ``/clock``.
+The run is lock-stepped: the sim starts paused and the runner advances it in small chunks with
+``/sim/step``, checking triggers and conditions between chunks; ``rtf`` 0 (the default) goes as fast
+as the machine allows, ``rtf`` > 0 paces the chunks to that real-time factor. Either way the same
+scenario gives the same numbers. Attached to nodes already running (``--attach``) with ``rtf`` > 0,
+the sim runs free at its own pace and the runner follows ``/clock``.
 """
 
 from __future__ import annotations
@@ -59,7 +60,7 @@ class StepFailure(RuntimeError):
 
 @dataclass(frozen=True)
 class RunOptions:
-    """How to run: ``rtf`` None = the scenario's own; 0 = lock-stepped as fast as possible."""
+    """How to run: ``rtf`` None = the scenario's own; 0 = as fast as possible, > 0 paced to that factor."""
 
     rtf: float | None = None
     record: bool = False
@@ -155,7 +156,8 @@ class ScenarioRun:
         self.options = options
         self.folder = folder
         self.rtf = scenario.rtf if options.rtf is None else options.rtf
-        self.lock_step = self.rtf == 0.0
+        self.lock_step = options.launch or self.rtf == 0.0
+        self._pace_anchor: tuple[float, float] | None = None  # (wall [s], sim [s]) that pacing counts from
         self.progress = _Progress(stream, options.quiet)
         node = session.node
         self.clock = session.record(Clock, "/clock", keep=10)
@@ -238,10 +240,23 @@ class ScenarioRun:
         target = self.now() + dt
         if self.lock_step:
             steps = max(1, round(dt / self._control_dt))
-            self._step_sim(steps)
+            self._pace(self._step_sim(steps))
         else:
             self.session.wait_for(lambda: self.now() >= target - 1e-9, max(10.0, 20.0 * dt / self.rtf), "sim time to advance")
         self._tick()
+
+    def _pace(self, sim_now: float) -> None:
+        """At ``rtf`` > 0, wait until ``sim_now`` is due on the wall clock (the run's rhythm, not a wait for an event)."""
+        if self.rtf <= 0.0:
+            return
+        wall = time.monotonic()
+        if self._pace_anchor is None:
+            self._pace_anchor = (wall, sim_now)
+            return
+        wall0, sim0 = self._pace_anchor
+        delay = wall0 + (sim_now - sim0) / self.rtf - wall
+        if delay > 0.0:
+            time.sleep(delay)
 
     def _elapsed(self) -> float:
         return self.now() - self.marks.get("start", 0.0)
@@ -461,7 +476,9 @@ class ScenarioRun:
     def execute(self) -> RunResult:
         self._wall0 = time.monotonic()
         scenario = self.scenario
-        mode = "lock-stepped, as fast as possible" if self.lock_step else f"real-time factor {self.rtf:g}"
+        mode = ("lock-stepped, as fast as possible" if self.rtf == 0.0
+                else f"lock-stepped at real-time factor {self.rtf:g}" if self.lock_step
+                else f"free-running at real-time factor {self.rtf:g}")
         self.progress.say(f"scenario {scenario.name} ({scenario.robot}, seed {scenario.seed}, {mode})")
         sim_start = 0.0
         run_wall0 = self._wall0
@@ -596,9 +613,7 @@ def run(scenario: Scenario, options: RunOptions = RunOptions(), stream: TextIO =
     """Bring up ``bringup --robot R`` (paused for lock-stepping), run the scenario, write artifacts."""
     folder = run_folder(options.out, scenario.name)
     rtf = scenario.rtf if options.rtf is None else options.rtf
-    args = ["bringup", "--robot", scenario.robot, "--scene", scenario.scene, "--rtf", f"{rtf:g}"]
-    if rtf == 0.0:
-        args.append("--paused")
+    args = ["bringup", "--robot", scenario.robot, "--scene", scenario.scene, "--rtf", f"{rtf:g}", "--paused"]
     with RosSession("scenario_runner", use_sim_time=True) as session:
         if options.launch:
             with running(args, log_dir=folder) as process:
