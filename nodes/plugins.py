@@ -58,6 +58,7 @@ class InLoopPlugins:
         self._cmd_vel_live = False
         self._warned_no_locomotion = False
         self._warned_busy = False
+        self._qp_fallbacks_reported = 0
         group = ReentrantCallbackGroup()
         node.create_subscription(TwistStamped, "/cmd_vel_stamped", self._on_cmd_vel_stamped, 10, callback_group=group)
 
@@ -169,6 +170,15 @@ class InLoopPlugins:
     def publish_state(self, now: float) -> None:
         """Under the lock, when controller state topics are due."""
         self.skills.publish_all()
+        if self.walking is not None and self.walking.qp_fallback_count != self._qp_fallbacks_reported:
+            grew = self.walking.qp_fallback_count > self._qp_fallbacks_reported
+            self._qp_fallbacks_reported = self.walking.qp_fallback_count  # a silent failure made visible
+        else:
+            grew = False
+        if grew:
+            self._node.get_logger().warning(
+                f"the walking torque QP failed in {self._qp_fallbacks_reported} control steps so far "
+                "(the previous contact forces were reused); see gait parameters or the last push")
         if self.walking is not None and self._locomotion_pub.get_subscription_count() > 0:
             status = self.walking.status()
             msg = self._locomotion_msg
@@ -181,6 +191,7 @@ class InLoopPlugins:
             msg.measured.linear.x, msg.measured.linear.y = status.measured.vx, status.measured.vy
             msg.measured.angular.z = status.measured.wz
             msg.message = status.message
+            msg.qp_fallbacks = self.walking.qp_fallback_count
             self._locomotion_pub.publish(msg)
 
     def on_reset(self) -> None:
