@@ -34,7 +34,7 @@ from std_srvs.srv import Trigger
 
 import robot_models
 from nodes.bringup import commands_for, parse_args
-from sim_client.processes import ChildProcess
+from nodes.processes import ChildProcess
 from sim_client.session import RosSession
 
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")

@@ -24,8 +24,8 @@ os.environ.setdefault("ROS_DOMAIN_ID", str(1 + random.randrange(101)))  # 1..101
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
 # Imported once the ROS environment above is fixed.
+from nodes.processes import running
 from sim_client.actions import MoveArmClient, WalkClient
-from sim_client.processes import running
 from sim_client.session import RosSession
 from sim_interfaces.action import MoveArm, Walk
 

@@ -37,8 +37,8 @@ from std_srvs.srv import Trigger
 from tf2_msgs.msg import TFMessage
 
 import robot_models
+from nodes.processes import running
 from sim_bridge import Simulation
-from sim_client.processes import running
 from sim_client.session import RosSession
 from sim_interfaces.msg import ObjectStates
 

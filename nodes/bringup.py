@@ -14,7 +14,7 @@ import sys
 import threading
 
 import robot_models
-from sim_client.processes import ChildProcess
+from nodes.processes import ChildProcess
 
 
 def parse_args(argv: list[str]) -> argparse.Namespace:

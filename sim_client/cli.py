@@ -25,7 +25,7 @@ from typing import Any
 
 import yaml
 
-from sim_client.processes import BIN
+from nodes.processes import BIN
 
 GOAL_WAIT_S = 3600.0
 

@@ -24,8 +24,8 @@ from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
+from nodes.processes import running
 from sim_client.actions import ACTION_CLIENTS, GoalHandle, ParameterError, Parameters, _ActionClientBase, push_request
-from sim_client.processes import running
 from sim_client.scenario import artifacts
 from sim_client.scenario.registry import (
     ACTIONS,

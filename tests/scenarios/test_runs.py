@@ -10,7 +10,7 @@ import textwrap
 
 import pytest
 
-from sim_client.processes import BIN
+from nodes.processes import BIN
 from sim_client.scenario import artifacts, schema
 from sim_client.scenario.runner import RunOptions, run
 
