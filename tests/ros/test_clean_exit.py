@@ -12,6 +12,7 @@ from tests.ros.actions import ready_client
 from tests.ros.processes import NodeProcess
 
 STARTUP_S = 60.0
+READY = {"sim_node": "active: physics running", "arm_server": "serving /move_arm", "locomotion_server": "serving /walk"}
 
 
 @pytest.mark.parametrize("robot", ["panda", "g1"])
@@ -23,6 +24,8 @@ def test_sim_node_and_servers_exit_cleanly_on_ctrl_c(client, robot):
     try:
         ready_client(client, MoveArm, "/move_arm", timeout=STARTUP_S)
         client.wait_for(lambda: client.node.count_publishers("/joint_states") > 0, STARTUP_S, "/joint_states")
+        # Each of *these* processes serves (the graph can still list a previous test's nodes on this domain).
+        client.wait_for(lambda: all(READY[p.args[0]] in p.output() for p in processes), STARTUP_S, "every node serving")
     finally:
         for process in processes:
             process.send_signal(signal.SIGINT)
