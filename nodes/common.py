@@ -55,27 +55,26 @@ def robot_of_sim(node: Node, timeout_s: float = 30.0) -> str:
 
 
 class Latest(Generic[MsgT]):
-    """The latest message of a topic (or per key), with a condition to wait for the next one."""
+    """The latest message of a topic, with a condition to wait for the next one."""
 
-    def __init__(self, key: Callable[[MsgT], str] | None = None) -> None:
-        self._key = key
-        self._messages: dict[str, MsgT] = {}
+    def __init__(self) -> None:
+        self._message: MsgT | None = None
         self._condition = threading.Condition()
         self._version = 0
 
     def put(self, msg: MsgT) -> None:
         with self._condition:
-            self._messages[self._key(msg) if self._key else ""] = msg
+            self._message = msg
             self._version += 1
             self._condition.notify_all()
 
-    def get(self, key: str = "") -> MsgT | None:
+    def get(self) -> MsgT | None:
         with self._condition:
-            return self._messages.get(key)
+            return self._message
 
     def clear(self) -> None:
         with self._condition:
-            self._messages.clear()
+            self._message = None
 
     def wait_next(self, timeout_s: float) -> bool:
         """Block until a new message arrives or ``timeout_s`` wall seconds pass. True if one came."""
@@ -96,12 +95,10 @@ class OnDemandTopic(Generic[MsgT]):
     """
 
     def __init__(self, node: Node, msg_type: Any, topic: str, qos: Any, callback_group: Any,
-                 key: Callable[[MsgT], str] | None = None, linger_s: float = 5.0,
-                 on_message: Callable[[MsgT], None] | None = None) -> None:
-        self.latest: Latest[MsgT] = Latest(key=key)
+                 linger_s: float = 5.0) -> None:
+        self.latest: Latest[MsgT] = Latest()
         self._node = node
-        self._on_message = on_message
-        self._args = (msg_type, topic, self._take, qos)
+        self._args = (msg_type, topic, self.latest.put, qos)
         self._group = callback_group
         self._linger_s = linger_s
         self._lock = threading.Lock()
@@ -109,11 +106,6 @@ class OnDemandTopic(Generic[MsgT]):
         self._last_use = 0.0
         self._subscription: Any = None
         self._timer: Any = None
-
-    def _take(self, msg: MsgT) -> None:
-        self.latest.put(msg)
-        if self._on_message is not None:
-            self._on_message(msg)
 
     def _acquire(self) -> None:
         with self._lock:
@@ -150,11 +142,11 @@ class OnDemandTopic(Generic[MsgT]):
         finally:
             self._release()
 
-    def fresh(self, timeout_s: float, key: str = "") -> MsgT | None:
+    def fresh(self, timeout_s: float) -> MsgT | None:
         """The latest message since subscribing, waiting up to ``timeout_s`` wall seconds for one."""
         with self.held() as latest:
             deadline = time.monotonic() + timeout_s
-            while (msg := latest.get(key)) is None and time.monotonic() < deadline:
+            while (msg := latest.get()) is None and time.monotonic() < deadline:
                 latest.wait_next(min(0.1, max(0.0, deadline - time.monotonic())))
             return msg
 

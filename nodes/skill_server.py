@@ -11,7 +11,6 @@ reset epoch in its state. A goal waits without holding a thread (``async`` execu
 from __future__ import annotations
 
 import itertools
-import math
 import os
 import threading
 import time
@@ -28,7 +27,6 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.task import Future
 
-from nodes.common import OnDemandTopic
 from nodes.conversions import seconds_of
 from nodes.executor import wait_parked
 from nodes.skill_protocol import BINDINGS, SKILL_COMMAND_TOPIC, SKILL_STATE_TOPIC, SkillBinding, result_codes
@@ -39,7 +37,7 @@ from sim_interfaces.msg import SkillCommand, SkillState
 ACK_TIMEOUT_S = 10.0  # wall seconds for /sim to report a goal it was sent
 CANCEL_ACK_S = 2.0  # wall seconds a cancel request waits for /sim to report it has taken the cancel
 RESEND_PERIOD_S = 0.1  # a START not yet reported is sent again (a message sent before discovery is lost)
-_STATUS_NAMES = {SkillState.SUCCEEDED: "SUCCEEDED", SkillState.ABORTED: "ABORTED", SkillState.CANCELED: "CANCELED"}
+_TERMINAL = frozenset((SkillState.SUCCEEDED, SkillState.ABORTED, SkillState.CANCELED))
 _seq = itertools.count(1 + (os.getpid() % 4096) * 1_000_000)  # unique per process; /sim echoes it
 _seq_lock = threading.Lock()
 
@@ -78,14 +76,12 @@ class SkillActionServer:
     """
 
     def __init__(self, node: Node, binding: SkillBinding, action_name: str, robot: RobotSpec,
-                 settings: Callable[[], dict[str, float]], feedback_period: Callable[[], float],
-                 states: OnDemandTopic[SkillState], commands: Any) -> None:
+                 settings: Callable[[], dict[str, float]], feedback_period: Callable[[], float], commands: Any) -> None:
         self._node = node
         self.binding = binding
         self._robot = robot
         self._settings = settings
         self._feedback_period = feedback_period
-        self._states = states
         self._commands = commands
         self._goals: dict[tuple[str, int], _Goal] = {}
         self._lock = threading.Lock()
@@ -131,13 +127,12 @@ class SkillActionServer:
         with self._lock:
             self._goals[(resource, goal.seq)] = goal
             self._watchdog_timer.reset()  # with the registration: the watchdog cannot miss this goal
-        with self._states.held():
-            self._send(command)
-            try:
-                return await wait_parked(goal.done)
-            finally:
-                with self._lock:
-                    self._goals.pop((resource, goal.seq), None)
+        self._send(command)
+        try:
+            return await wait_parked(goal.done)
+        finally:
+            with self._lock:
+                self._goals.pop((resource, goal.seq), None)
 
     def _cancel(self, handle: ServerGoalHandle) -> CancelResponse:
         goal = self._find(handle)
@@ -176,7 +171,7 @@ class SkillActionServer:
                 if state.feedback:
                     goal.handle.publish_feedback(deserialize_message(bytes(state.feedback), action.Feedback))
             return
-        if state.status not in _STATUS_NAMES:
+        if state.status not in _TERMINAL:
             return
         result = deserialize_message(bytes(state.result), action.Result) if state.result else action.Result()
         if not state.result:
@@ -255,11 +250,8 @@ def skill_servers(node: Node, robot: RobotSpec, actions: dict[str, str], setting
     # Subscribed for the node's life (discovery is done before the first goal, which then gets its
     # first feedback at once); /sim publishes states only while a goal runs or changes, so an idle
     # server receives nothing.
-    states: OnDemandTopic[SkillState] = OnDemandTopic(node, SkillState, SKILL_STATE_TOPIC, qos, ReentrantCallbackGroup(),
-                                                       on_message=on_state, linger_s=math.inf)
-    with states.held():
-        pass
+    node.create_subscription(SkillState, SKILL_STATE_TOPIC, on_state, qos, callback_group=ReentrantCallbackGroup())
     commands = node.create_publisher(SkillCommand, SKILL_COMMAND_TOPIC, qos)
     for skill, action_name in actions.items():
-        servers[skill] = SkillActionServer(node, BINDINGS[skill], action_name, robot, settings, feedback_period, states, commands)
+        servers[skill] = SkillActionServer(node, BINDINGS[skill], action_name, robot, settings, feedback_period, commands)
     return servers
