@@ -175,7 +175,9 @@ class SimNode(LifecycleNode):
     def _create_interfaces(self) -> None:
         assert self.sim is not None
         sim = self.sim
-        reliable = QoSProfile(depth=10)
+        # A reliable writer keeps this many samples for a slow reader: stepped as fast as possible, /sim
+        # publishes 200 /joint_states per second of sim time in bursts a recorder must not lose.
+        reliable = QoSProfile(depth=100)
         self._clock_pub = self.create_publisher(Clock, "/clock", reliable)
         self._joint_pub = self.create_publisher(JointState, "/joint_states", reliable)
         self._odom_pub = self.create_publisher(Odometry, "/odom", reliable)

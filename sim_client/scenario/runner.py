@@ -228,12 +228,32 @@ class ScenarioRun:
             self._control_dt = self._step_sim(1) - t0
             if self._control_dt <= 0:
                 raise StepFailure("/sim/step did not advance sim time; is the sim paused by someone else?")
+            self._wait_recordings_flow()
         else:
             self.session.wait_for(lambda: self.clock.count > 0, STARTUP_WALL_S, "/clock")
         self._do_reset(self.scenario.keyframe)
         self.marks["start"] = self.now()
         if self.mcap is not None:
             self.mcap.discover()
+
+    def _wait_recordings_flow(self) -> None:
+        """Step a little until the recordings receive the sim's streams (subscriptions matched its publishers).
+
+        Messages published before a subscription is matched are not delivered; on a loaded machine the
+        matching can take a while, and a run stepped as fast as possible would start without them.
+        """
+        def flowing() -> bool:
+            mcap = self.mcap
+            return (self.clock.count > 0 and self.joints.count > 0 and self.odom.count > 0
+                    and (mcap is None or all(mcap.counts.get(t, 0) > 0 for t in ("/clock", "/joint_states"))))
+
+        deadline = time.monotonic() + STARTUP_WALL_S
+        while not flowing():
+            if time.monotonic() > deadline:
+                raise StepFailure("no /clock, /joint_states or /odom reached the runner after stepping the sim")
+            self._step_sim(max(1, round(0.01 / self._control_dt)))
+            with contextlib.suppress(WaitTimeout):
+                self.session.wait_for(flowing, 0.2, "the recordings to receive the sim's streams")
 
     def advance(self, dt: float) -> None:
         """Let about ``dt`` [s] of sim time pass, then check triggers."""
