@@ -36,6 +36,7 @@ from sim_interfaces.msg import SkillCommand, SkillState
 
 ACK_TIMEOUT_S = 10.0  # wall seconds for /sim to report a goal it was sent
 CANCEL_ACK_S = 2.0  # wall seconds a cancel request waits for /sim to report it has taken the cancel
+SIM_MATCH_S = 10.0  # wall seconds a server waits at start-up for /sim's goal topics to match
 RESEND_PERIOD_S = 0.1  # a START not yet reported is sent again (a message sent before discovery is lost)
 _TERMINAL = frozenset((SkillState.SUCCEEDED, SkillState.ABORTED, SkillState.CANCELED))
 _seq = itertools.count(1 + (os.getpid() % 4096) * 1_000_000)  # unique per process; /sim echoes it
@@ -250,8 +251,16 @@ def skill_servers(node: Node, robot: RobotSpec, actions: dict[str, str], setting
     # Subscribed for the node's life (discovery is done before the first goal, which then gets its
     # first feedback at once); /sim publishes states only while a goal runs or changes, so an idle
     # server receives nothing.
-    node.create_subscription(SkillState, SKILL_STATE_TOPIC, on_state, qos, callback_group=ReentrantCallbackGroup())
+    states = node.create_subscription(SkillState, SKILL_STATE_TOPIC, on_state, qos, callback_group=ReentrantCallbackGroup())
     commands = node.create_publisher(SkillCommand, SKILL_COMMAND_TOPIC, qos)
+    # The actions are offered once /sim is matched both ways, so a client that waited for the server
+    # finds its first goal taken at once (not after discovery, which takes a while after start-up).
+    deadline = time.monotonic() + SIM_MATCH_S
+    while (commands.get_subscription_count() == 0 or states.get_publisher_count() == 0) and time.monotonic() < deadline:
+        time.sleep(0.05)  # discovery runs in the middleware's threads; nothing here to spin yet
+    if commands.get_subscription_count() == 0:
+        node.get_logger().warning(f"/sim has not subscribed to {SKILL_COMMAND_TOPIC} within {SIM_MATCH_S:g} s; "
+                                  "serving anyway (goals are sent again until /sim answers)")
     for skill, action_name in actions.items():
         servers[skill] = SkillActionServer(node, BINDINGS[skill], action_name, robot, settings, feedback_period, commands)
     return servers
