@@ -62,6 +62,7 @@ class _Goal:
     last_feedback: float = float("-inf")
     milestone: int = -1
     cancel_seen: threading.Event = field(default_factory=threading.Event)
+    cancel_asked: bool = False
 
 
 class SkillActionServer:
@@ -138,6 +139,7 @@ class SkillActionServer:
     def _cancel(self, handle: ServerGoalHandle) -> CancelResponse:
         goal = self._find(handle)
         if goal is not None:
+            goal.cancel_asked = True
             self._send(SkillCommand(request=SkillCommand.CANCEL, skill=self.binding.name, resource=goal.resource,
                                     goal_seq=goal.seq))
             # Answered once /sim has the cancel (the robot is stopping), so a client that steps a paused
@@ -181,6 +183,12 @@ class SkillActionServer:
 
     def _end(self, goal: _Goal, status: int, result: Any) -> None:
         handle = goal.handle
+        if status == SkillState.CANCELED and goal.cancel_asked:
+            # /sim can end a goal CANCELED before rclpy has marked it canceling (that happens when the
+            # cancel callback, still waiting for this very state, returns): give it that moment.
+            deadline = time.monotonic() + CANCEL_ACK_S
+            while handle.is_active and not handle.is_cancel_requested and time.monotonic() < deadline:
+                time.sleep(0.001)
         if handle.is_active:
             if status == SkillState.CANCELED and handle.is_cancel_requested:
                 handle.canceled()
