@@ -176,8 +176,9 @@ class SimNode(LifecycleNode):
         assert self.sim is not None
         sim = self.sim
         # A reliable writer keeps this many samples for a slow reader: stepped as fast as possible, /sim
-        # publishes 200 /joint_states per second of sim time in bursts a recorder must not lose.
-        reliable = QoSProfile(depth=100)
+        # publishes /joint_states in bursts a recorder on a busy machine must not lose (1000 = 5 s of sim
+        # time at 200 Hz, about 1 MB).
+        reliable = QoSProfile(depth=1000)
         self._clock_pub = self.create_publisher(Clock, "/clock", reliable)
         self._joint_pub = self.create_publisher(JointState, "/joint_states", reliable)
         self._odom_pub = self.create_publisher(Odometry, "/odom", reliable)
