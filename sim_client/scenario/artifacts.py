@@ -15,6 +15,7 @@ import json
 import math
 import pathlib
 import re
+import struct
 import sys
 import threading
 from dataclasses import dataclass
@@ -145,6 +146,8 @@ class McapRecorder:
         self._sequence = 0
         self._exclude = exclude
         self.counts: dict[str, int] = {}
+        self.latest_stamp_s: dict[str, float] = {}  # topic -> stamp [s] of the newest message, for stamped types
+        self._stamped: set[str] = set()
         self.skipped: dict[str, str] = {}
         self._closed = False
 
@@ -175,6 +178,8 @@ class McapRecorder:
                     self._schemas[type_name] = self._writer.register_schema(type_name, "ros2msg", definition.encode())
                 self._channels[topic] = self._writer.register_channel(topic, "cdr", self._schemas[type_name])
                 self.counts[topic] = 0
+                if _starts_with_stamp(msg_type):
+                    self._stamped.add(topic)
             self._subscriptions.append(node.create_subscription(
                 msg_type, topic, lambda data, topic=topic: self._on_message(topic, data), qos, raw=True,
                 event_callbacks=quiet_events()))
@@ -188,6 +193,8 @@ class McapRecorder:
             self._writer.add_message(self._channels[topic], log_time=now, data=data, publish_time=now,
                                      sequence=self._sequence)
             self.counts[topic] += 1
+            if topic in self._stamped:
+                self.latest_stamp_s[topic] = _cdr_leading_stamp_s(data)
 
     def close(self) -> None:
         for subscription in self._subscriptions:
@@ -198,6 +205,22 @@ class McapRecorder:
             self._closed = True
             self._writer.finish()
             self._stream.close()
+
+
+def _starts_with_stamp(msg_type: Any) -> bool:
+    """Whether a message's first field is a time stamp (a ``std_msgs/Header`` or a ``builtin_interfaces/Time``)."""
+    fields = list(msg_type.get_fields_and_field_types().values())
+    return bool(fields) and fields[0] in ("std_msgs/Header", "builtin_interfaces/Time")
+
+
+def _cdr_leading_stamp_s(data: bytes) -> float:
+    """The leading stamp [s] of a serialized message that starts with one (sec int32, nanosec uint32).
+
+    Bytes 0-3 are the CDR encapsulation header; byte 1 says the byte order (1: little-endian).
+    """
+    order = "<" if data[1] == 1 else ">"
+    sec, nanosec = struct.unpack_from(order + "iI", data, 4)
+    return sec + nanosec * 1e-9
 
 
 def read_mcap_topics(path: pathlib.Path) -> dict[str, int]:

@@ -44,7 +44,7 @@ from sim_client.scenario.registry import (
     step_kind,
 )
 from sim_client.scenario.schema import Expectation, Scenario
-from sim_client.session import RosSession, WaitTimeout
+from sim_client.session import RosSession, TopicRecorder, WaitTimeout
 from sim_interfaces.msg import ObjectStates
 from sim_interfaces.srv import Push, Reset, Step as StepSrv
 
@@ -531,17 +531,31 @@ class ScenarioRun:
         return result
 
     def _settle_records(self) -> None:
-        """Let the last published state arrive before measuring (deadline, not a sleep)."""
+        """Let the last published state reach the measures and the recording (deadline, not a sleep).
+
+        Bursts of a lock-stepped run can still be in flight when the last step returns; a reliable
+        reader gets each topic in order, so its newest stamp reaching the end means nothing is missing.
+        /clock and /joint_states are published at every stepping stop, so in lock-step they reach the
+        end exactly; /odom may lag one period.
+        """
         end = self.marks["end"]
+        exact = 1e-6 if self.lock_step else 0.05
+
+        def latest_s(recorder: TopicRecorder[Any]) -> float:
+            latest = recorder.latest
+            return -math.inf if latest is None else artifacts.stamp_s(latest.header.stamp)
 
         def arrived() -> bool:
-            latest = self.odom.latest
-            return latest is not None and artifacts.stamp_s(latest.header.stamp) >= end - 0.05
+            if latest_s(self.odom) < end - 0.05 or latest_s(self.joints) < end - exact:
+                return False
+            mcap = self.mcap
+            if mcap is None:
+                return True
+            return all(mcap.latest_stamp_s.get(topic, -math.inf) >= end - exact
+                       for topic in ("/clock", "/joint_states") if topic in mcap.counts)
 
-        try:
-            self.session.wait_for(arrived, 5.0, "the final /odom")
-        except WaitTimeout:
-            pass
+        with contextlib.suppress(WaitTimeout):
+            self.session.wait_for(arrived, 10.0, "the final /odom, /joint_states and /clock")
 
     def _finish_goals(self) -> None:
         for goal_id, handle in self.goals.items():
