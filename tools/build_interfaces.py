@@ -7,6 +7,9 @@ Two fixes are needed before the wheels' CMake files can build anything (see the 
    these are rewritten to this interpreter's paths;
 2. the generators run with this venv's Python, so the build runs with the wheels' start-up hook
    marked as done and ``LD_LIBRARY_PATH`` already set, so nothing re-executes mid-build.
+
+The installed libraries carry a RUNPATH to ``<venv>/lib``, so the libraries they link to are found
+without help; ``<venv>/setup.sh`` (tools/register_ament.py) adds the library path rosidl searches.
 """
 
 from __future__ import annotations
@@ -69,6 +72,10 @@ def build_package(name: str, prefix: pathlib.Path, env: dict[str, str]) -> None:
         f"-DCMAKE_PREFIX_PATH={prefix}", f"-DCMAKE_INSTALL_PREFIX={prefix}",
         f"-DPython3_EXECUTABLE={prefix / 'bin' / 'python'}", "-DBUILD_TESTING=OFF",
         "-DCMAKE_BUILD_TYPE=Release", "-Wno-dev",
+        # Every installed library and Python extension finds the generated libraries it links to in
+        # <prefix>/lib by itself (RUNPATH). The type support libraries rosidl opens at run time are
+        # searched on LD_LIBRARY_PATH only: <venv>/setup.sh exports it for tools of other set-ups.
+        f"-DCMAKE_INSTALL_RPATH={prefix / 'lib'}",
     ]
     for command in (configure, ["cmake", "--build", str(build), "-j", "2"], ["cmake", "--install", str(build)]):
         result = subprocess.run(command, env=env, cwd=build, capture_output=True, text=True)
