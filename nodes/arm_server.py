@@ -17,6 +17,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 import robot_models
+from nodes.cli import help_text
 from nodes.common import GoalRejected, OnDemandTopic, spin_server
 from nodes.conversions import pose_from_msg
 from nodes.parameters import ParameterSpec, declare
@@ -136,9 +137,21 @@ class ArmServer(Node):
         return qpos
 
 
+def help_page(program: str) -> str:
+    """``arm_server --help``: what it serves and its parameters (the Panda's defaults)."""
+    robot = robot_models.load("panda")
+    specs = (ParameterSpec("robot", "", "robot of the running /sim (empty = ask /sim)", read_only=True), *parameters(robot))
+    return help_text(program, NODE_NAME, """\
+The /arm node: the MoveArm (/move_arm) and PickPlace (/pick_place) action servers and the
+/arm/compute_ik service, for the Panda or the G1's arms. The actions run as skills inside /sim's
+control step; start the sim node first (it waits for /sim up to 30 s and asks it for the robot).""", specs,
+                     "Defaults shown are the Panda's; the grip force limits follow the robot.")
+
+
 def main(args: list[str] | None = None) -> int:
     """Console entry point: ``arm_server [--ros-args -p robot:=panda]``."""
-    return spin_server(lambda robot, overrides: ArmServer(robot, parameter_overrides=overrides), NODE_NAME, args)
+    return spin_server(lambda robot, overrides: ArmServer(robot, parameter_overrides=overrides), NODE_NAME, args,
+                       help_page)
 
 
 if __name__ == "__main__":

@@ -155,15 +155,31 @@ class GoalRejected(Exception):
     """A goal that can never be executed; the message says why and what is allowed."""
 
 
-def spin_server(node_factory: Callable[[str, list[Parameter]], Node], node_name: str, args: list[str] | None) -> int:
+def spin_server(node_factory: Callable[[str, list[Parameter]], Node], node_name: str, args: list[str] | None,
+                help_page: Callable[[str], str] | None = None) -> int:
     """``main`` of a server node: find the robot (parameter or /sim), build the node, spin it.
 
-    Ctrl-C (or SIGTERM) ends it with code 0 at any point, while it starts up as while it serves.
+    ``-h``/``--help`` prints ``help_page(program)`` and returns at once, without ROS. A bad start-up
+    parameter or params file ends it with one line and code 2. Ctrl-C (or SIGTERM) ends it with
+    code 0 at any point, while it starts up as while it serves.
     """
+    from nodes.cli import StartupError, fail, help_requested, init_ros, program_name
+
     argv = sys.argv if args is None else args
-    rclpy.init(args=argv)
+    program = program_name(argv)
+    if help_requested(argv):
+        sys.stdout.write(help_page(program) if help_page is not None else
+                         f"usage: {program} [-h] [--ros-args ...]\n\nThe /{node_name} node; "
+                         f"`ros2 param describe /{node_name} NAME` shows its parameters.\n")
+        return 0
+    try:
+        init_ros(argv)
+    except StartupError as error:
+        return fail(program, error)
     try:
         return _serve(node_factory, node_name, argv)
+    except StartupError as error:
+        return fail(program, error)
     except KeyboardInterrupt:  # interrupted while starting up (asking /sim, building the node)
         return 0
     finally:
@@ -173,6 +189,8 @@ def spin_server(node_factory: Callable[[str, list[Parameter]], Node], node_name:
 def _serve(node_factory: Callable[[str, list[Parameter]], Node], node_name: str, argv: list[str]) -> int:
     from rclpy.executors import ExternalShutdownException
 
+    import robot_models
+    from nodes.cli import StartupError
     from nodes.executor import ServerExecutor, drop_qos_event_handlers
     from nodes.parameters import ParameterSpec, declare, guard_parameter_services
 
@@ -187,7 +205,10 @@ def _serve(node_factory: Callable[[str, list[Parameter]], Node], node_name: str,
         return 2
     finally:
         probe.destroy_node()
-    node = node_factory(robot, overrides)
+    try:
+        node = node_factory(robot, overrides)
+    except robot_models.RobotModelError as error:
+        raise StartupError(str(error)) from None
     drop_qos_event_handlers(node)
     guard_parameter_services(node)
     executor = ServerExecutor(num_threads=4)

@@ -15,7 +15,8 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 import robot_models
-from nodes.common import GoalRejected, spin_server
+from nodes.cli import StartupError, help_text
+from nodes.common import spin_server
 from nodes.parameters import ParameterSpec, declare
 from nodes.skill_server import skill_servers
 
@@ -49,7 +50,8 @@ class LocomotionServer(Node):
         super().__init__(NODE_NAME, **kwargs)
         spec = robot_models.load(robot)
         if spec.walking is None:
-            raise GoalRejected(f"robot {robot!r} cannot walk; walking robots: g1")
+            walkers = [name for name in robot_models.ROBOT_NAMES if robot_models.load(name).walking is not None]
+            raise StartupError(f"robot {robot!r} cannot walk; walking robots: {', '.join(walkers)}")
         declare(self, (ParameterSpec("robot", robot, "robot whose legs are served", read_only=True), *parameters(spec)))
         self._servers = skill_servers(self, spec, {"walk": "/walk", "navigate_to_pose": "/navigate_to_pose"},
                                       self._settings, lambda: 1.0 / self._param("feedback_rate"))
@@ -69,9 +71,20 @@ class LocomotionServer(Node):
         return SetParametersResult(successful=True)
 
 
+def help_page(program: str) -> str:
+    """``locomotion_server --help``: what it serves and its parameters (ranges of the G1)."""
+    robot = robot_models.load("g1")
+    specs = (ParameterSpec("robot", "", "robot of the running /sim (empty = ask /sim)", read_only=True), *parameters(robot))
+    return help_text(program, NODE_NAME, """\
+The /locomotion node: the Walk (/walk) and NavigateToPose (/navigate_to_pose) action servers of a
+walking robot. Both run as skills inside /sim's control step; start the sim node first (it waits
+for /sim up to 30 s and asks it which robot it simulates).""", specs)
+
+
 def main(args: list[str] | None = None) -> int:
     """Console entry point: ``locomotion_server`` (asks /sim for its robot)."""
-    return spin_server(lambda robot, overrides: LocomotionServer(robot, parameter_overrides=overrides), NODE_NAME, args)
+    return spin_server(lambda robot, overrides: LocomotionServer(robot, parameter_overrides=overrides), NODE_NAME, args,
+                       help_page)
 
 
 if __name__ == "__main__":

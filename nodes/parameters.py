@@ -35,7 +35,16 @@ class ParameterSpec:
 
 
 def declare(node: Node, specs: tuple[ParameterSpec, ...]) -> None:
-    """Declare every parameter of ``specs`` on ``node`` with a full descriptor."""
+    """Declare every parameter of ``specs`` on ``node`` with a full descriptor.
+
+    Raises:
+        nodes.cli.StartupError: a start-up value (``-p`` or a params file) is out of range or of the
+            wrong type; the message names the parameter, the value and what is allowed.
+    """
+    from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+
+    from nodes.cli import parameter_error
+
     for spec in specs:
         descriptor = ParameterDescriptor(description=spec.description, read_only=spec.read_only)
         if spec.low is not None and spec.high is not None:
@@ -45,7 +54,12 @@ def declare(node: Node, specs: tuple[ParameterSpec, ...]) -> None:
             elif isinstance(spec.default, int) and not isinstance(spec.default, bool):
                 descriptor.integer_range = [IntegerRange(from_value=int(spec.low), to_value=int(spec.high), step=1)]
                 descriptor.additional_constraints = f"{int(spec.low)} <= value <= {int(spec.high)}"
-        node.declare_parameter(spec.name, spec.default, descriptor)
+        try:
+            node.declare_parameter(spec.name, spec.default, descriptor)
+        except (InvalidParameterValueException, InvalidParameterTypeException) as error:
+            # rclpy keeps the start-up values in this (private) table; the exception does not carry them.
+            given = getattr(node, "_parameter_overrides", {}).get(spec.name)
+            raise parameter_error(spec, getattr(given, "value", None), error) from None
 
 
 PARAMETER_TYPES = {value: name for name, value in vars(ParameterType).items() if name.startswith("PARAMETER_")}

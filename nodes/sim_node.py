@@ -36,6 +36,7 @@ from std_srvs.srv import Trigger
 from tf2_msgs.msg import TFMessage
 
 import robot_models
+from nodes.cli import StartupError, fail, help_requested, help_text, init_ros, program_name
 from nodes.conversions import occupancy_grid_msg, set_pose, set_time
 from nodes.executor import ServerExecutor, drop_qos_event_handlers
 from nodes.parameters import ParameterSpec, declare, guard_parameter_services
@@ -97,6 +98,7 @@ class SimNode(LifecycleNode):
         self._stops: tuple[str, ...] = ()
         self._schedule = _Schedule()
         self._fault_count = 0
+        self.configure_error = ""  # why the last configure failed, as the user should read it
         self._last_rtf = 0.0
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
@@ -155,22 +157,30 @@ class SimNode(LifecycleNode):
                 self.plugins.on_reset()
             self._pacer.reanchor()
             return TransitionCallbackReturn.SUCCESS
-        name = str(self._param("robot"))
         try:
-            robot = robot_models.load(name, str(self._param("scene")) or None)
-        except (robot_models.UnknownRobotError, robot_models.UnknownSceneError) as error:
-            self.get_logger().error(f"cannot configure: {error}")
+            robot = self._configure()
+        except Exception as error:  # noqa: BLE001 - any cause is reported as it is, and the node stays unconfigured
+            self.configure_error = str(error) if isinstance(error, (StartupError, robot_models.RobotModelError)) \
+                else f"{type(error).__name__}: {error}"
+            self.get_logger().error(f"cannot configure: {self.configure_error}")
+            self.sim = None
+            self.plugins = None
             return TransitionCallbackReturn.FAILURE
-        self.sim = Simulation(robot)
-        self._update_periods()
-        self._create_interfaces()
-        self.plugins = InLoopPlugins(self, self.sim, self._lock)
-        drop_qos_event_handlers(self)  # cheap executor wake-ups: the physics thread shares the GIL
         self.get_logger().info(
             f"robot {robot.name}: {len(robot.actuated_joints)} actuated joints, physics step "
             f"{robot.physics_timestep * 1e3:.1f} ms, control step {robot.control_timestep * 1e3:.1f} ms"
         )
         return TransitionCallbackReturn.SUCCESS
+
+    def _configure(self) -> robot_models.RobotSpec:
+        """Build the scene, the interfaces and the in-loop plugins (raises on any failure)."""
+        robot = robot_models.load(str(self._param("robot")), str(self._param("scene")) or None)
+        self.sim = Simulation(robot)
+        self._update_periods()
+        self._create_interfaces()
+        self.plugins = InLoopPlugins(self, self.sim, self._lock)
+        drop_qos_event_handlers(self)  # cheap executor wake-ups: the physics thread shares the GIL
+        return robot
 
     def _create_interfaces(self) -> None:
         assert self.sim is not None
@@ -553,11 +563,30 @@ def _next_due(previous: float, period: float, now: float) -> float:
     return nxt
 
 
+def help_page(program: str) -> str:
+    """``sim_node --help``: what /sim does and its parameters."""
+    return help_text(program, NODE_NAME, """\
+The /sim node: a headless MuJoCo simulation of one robot scene as a lifecycle node. It steps the
+physics (paced by real_time_factor, or on /sim/step), publishes /clock, /joint_states, /odom, /tf,
+/tf_static and /objects, consumes /cmd_vel, runs the skills of the action servers in its control
+step and serves reset, pause, resume, step and push under /sim/.""", PARAMETERS,
+                     f"Known robots: {', '.join(robot_models.ROBOT_NAMES)}. The gait parameters (gait.*) are declared "
+                     "once a walking robot is configured: `ros2 param list /sim` shows them.")
+
+
 def main(args: list[str] | None = None) -> int:
     """Console entry point: ``sim_node --ros-args -p robot:=g1``."""
-    rclpy.init(args=args)
+    argv = sys.argv if args is None else args
+    program = program_name(argv)
+    if help_requested(argv):
+        sys.stdout.write(help_page(program))
+        return 0
     try:
+        init_ros(argv)
         node = SimNode()
+    except StartupError as error:
+        rclpy.try_shutdown()
+        return fail(program, error)
     except KeyboardInterrupt:  # Ctrl-C while it starts: end as quietly as when running
         rclpy.try_shutdown()
         return 0
@@ -568,8 +597,7 @@ def main(args: list[str] | None = None) -> int:
     try:
         if node.get_parameter("autostart").value:
             if node.trigger_configure() != TransitionCallbackReturn.SUCCESS:
-                node.get_logger().fatal(f"configuration failed; known robots: {', '.join(robot_models.ROBOT_NAMES)}")
-                return 2
+                return fail(program, StartupError(f"cannot configure /sim: {node.configure_error or 'unknown cause'}"))
             node.trigger_activate()
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):

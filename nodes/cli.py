@@ -1,0 +1,98 @@
+"""What every node's console script does before and around ROS: ``--help``, and start-up errors in one line.
+
+A node's ``main`` answers ``-h``/``--help`` (given before ``--ros-args``) at once, without starting
+ROS, with its parameters, their defaults and ranges. A bad start-up parameter (out of range, wrong
+type) or an unreadable params file ends the process with one line on stderr that names the
+parameter, the value and what is allowed, and exit code :data:`EXIT_BAD_START`; no traceback.
+"""
+
+from __future__ import annotations
+
+import re
+import sys
+from collections.abc import Sequence
+from typing import Any
+
+from nodes.parameters import ParameterSpec
+
+EXIT_BAD_START = 2
+
+
+class StartupError(Exception):
+    """A node cannot start as asked; the message is the one line the user reads."""
+
+
+def help_requested(argv: Sequence[str]) -> bool:
+    """``-h`` or ``--help`` among the arguments before ``--ros-args`` (``argv[0]`` is the program)."""
+    own = list(argv[1:])
+    if "--ros-args" in own:
+        own = own[: own.index("--ros-args")]
+    return any(arg in ("-h", "--help") for arg in own)
+
+
+def allowed(spec: ParameterSpec) -> str:
+    """What a parameter accepts, in words: type, range, read-only."""
+    kind = {bool: "true or false", int: "an integer", float: "a number with a decimal point", str: "a string"}[type(spec.default)]
+    text = kind
+    if spec.low is not None and spec.high is not None:
+        text += f" from {spec.low:g} to {spec.high:g}"
+    return text
+
+
+def help_text(program: str, node_name: str, summary: str, specs: Sequence[ParameterSpec], notes: str = "") -> str:
+    """The ``--help`` page of a node: usage, what it does, every parameter with default and range."""
+    width = max((len(spec.name) for spec in specs), default=10)
+    lines = [
+        f"usage: {program} [-h] [--ros-args [-p NAME:=VALUE ...] [--params-file FILE] [-r __ns:=/NS] ...]",
+        "",
+        summary.strip(),
+        "",
+        f"parameters of /{node_name} (set at start with -p NAME:=VALUE; live with `ros2 param set /{node_name} NAME VALUE`",
+        "or `sim param set`; read-only ones only at start):",
+    ]
+    for spec in specs:
+        flags = ", read-only" if spec.read_only else ""
+        default = str(spec.default).lower() if isinstance(spec.default, bool) else repr(spec.default)
+        lines.append(f"  {spec.name:<{width}}  {spec.description}")
+        lines.append(f"  {'':<{width}}  default {default}; {allowed(spec)}{flags}")
+    if notes:
+        lines += ["", notes.strip()]
+    return "\n".join(lines) + "\n"
+
+
+def parameter_error(spec: ParameterSpec, value: Any, error: Exception) -> StartupError:
+    """The one-line error for a start-up value rclpy refused while declaring ``spec``."""
+    from rclpy.exceptions import InvalidParameterTypeException
+
+    shown = repr(value) if value is not None else "the value given"
+    if isinstance(error, InvalidParameterTypeException):
+        return StartupError(f"parameter {spec.name}: {shown} has the wrong type; allowed: {allowed(spec)}")
+    return StartupError(f"parameter {spec.name}: {shown} is refused; allowed: {allowed(spec)}")
+
+
+def params_file_error(error: Exception) -> StartupError:
+    """The one-line error for ROS arguments rcl could not read (a params file above all)."""
+    text = str(error).replace("\n", " ")
+    cause = re.search(r"failed to initialize rcl: (.*?)(?:, at /\S+)+\s*$", text)
+    return StartupError(f"cannot read the ROS arguments: {(cause.group(1) if cause else text).strip()}")
+
+
+def init_ros(argv: Sequence[str]) -> None:
+    """``rclpy.init`` that turns unreadable ROS arguments (a bad params file) into a :class:`StartupError`."""
+    import rclpy
+    from rclpy._rclpy_pybind11 import RCLError
+
+    try:
+        rclpy.init(args=list(argv))
+    except RCLError as error:
+        raise params_file_error(error) from None
+
+
+def fail(program: str, error: StartupError) -> int:
+    """Print the one line and return the exit code."""
+    sys.stderr.write(f"{program}: {error}\n")
+    return EXIT_BAD_START
+
+
+def program_name(argv: Sequence[str]) -> str:
+    return (argv[0].rsplit("/", 1)[-1] if argv else "") or "node"
