@@ -10,6 +10,7 @@ from __future__ import annotations
 import sys
 from typing import Any
 
+import mujoco
 import numpy as np
 from nav_msgs.msg import Odometry
 from rclpy.callback_groups import ReentrantCallbackGroup
@@ -21,10 +22,11 @@ from nodes.cli import help_text
 from nodes.common import GoalRejected, OnDemandTopic, spin_server
 from nodes.conversions import pose_from_msg
 from nodes.parameters import ParameterSpec, declare
-from nodes.skill_protocol import ARM_FRAMES, ARM_SETTINGS, arm_name, compose
+from nodes.skill_protocol import ARM_SETTINGS, arm_name
 from nodes.skill_server import skill_servers
 from sim_bridge.arm import ArmKinematics
 from sim_bridge.errors import InvalidGoalError, SimError
+from sim_bridge.frames import check_frame, to_world
 from sim_bridge.state import Pose
 from sim_interfaces.srv import ComputeIK
 
@@ -106,15 +108,14 @@ class ArmServer(Node):
                                    "give a unit quaternion, or position_only")
         local = Pose(pose.position, pose.orientation_wxyz / norm if norm >= 1e-6 else np.array([1.0, 0.0, 0.0, 0.0]))
         frame = request.target.header.frame_id
-        if frame in ARM_FRAMES:
-            return local
-        if frame != self.robot.base_body:
-            raise InvalidGoalError(f"unknown frame {frame!r}; allowed: world (or empty), odom, {self.robot.base_body}")
-        model = self.robot.model
-        adr = model.joint(model.body(self.robot.base_body).jntadr[0]).qposadr[0] if self.robot.floating_base else -1
-        base = Pose(qpos[adr:adr + 3].copy(), qpos[adr + 3:adr + 7].copy()) if adr >= 0 else \
-            Pose(np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0]))
-        return compose(base, local)
+        check_frame(frame, self.robot, "target")
+        if frame in self.robot.objects:
+            raise InvalidGoalError(f"frame {frame!r} is an object's: an IK query resolves the robot's frames from "
+                                   "/joint_states only; give the target in world or in a link of the robot")
+        data = mujoco.MjData(self.robot.model)
+        data.qpos[:] = qpos
+        mujoco.mj_kinematics(self.robot.model, data)
+        return to_world(self.robot.model, data, frame, local)
 
     def _current_qpos(self) -> np.ndarray:
         """Full qpos of the robot from /joint_states (and /odom for a floating base)."""

@@ -222,6 +222,7 @@ class SimNode(LifecycleNode):
             self._map_pub = self.create_publisher(OccupancyGridMsg, "/map", static_qos)
             self._map_pub.publish(occupancy_grid_msg(grid_from_obstacles(robot.obstacles)))
         self._objects_msg = ObjectStates(names=list(robot.objects), poses=[PoseMsg() for _ in robot.objects])
+        self._objects_msg.header.frame_id = "world"
         if robot.floating_base:
             static = TFMessage()
             identity = TransformStamped()

@@ -18,7 +18,6 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-import mujoco
 import numpy as np
 from geometry_msgs.msg import Pose as PoseMsg, PoseStamped
 
@@ -26,7 +25,9 @@ from nodes.conversions import duration_msg, set_pose, set_time, yaw_of
 from robot_models import RobotSpec, WalkingLimits
 from sim_bridge import Simulation
 from sim_bridge.arm import PickPlaceGoal
+from sim_bridge.arm.pick_place import place_problem
 from sim_bridge.errors import InvalidGoalError
+from sim_bridge.frames import check_frame, is_world, to_world
 from sim_bridge.skills import LEGS, NavigateGoal, NavigateSkill, Skill, SkillOutcome, Values, WalkGoal, WalkSkill
 from sim_bridge.skills.arm import MoveArmGoal, MoveArmSkill, PickPlaceSkill
 from sim_bridge.state import Pose
@@ -34,8 +35,6 @@ from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, Walk
 
 SKILL_COMMAND_TOPIC = "/sim/skill_command"
 SKILL_STATE_TOPIC = "/sim/skill_state"
-WORLD_FRAMES = ("", "world", "odom", "map")
-ARM_FRAMES = ("", "world", "odom")  # and the robot's base body
 PICK_POSE_RADIUS_M = 0.03  # a pick_pose names the object whose centre is this close
 # The /arm parameters the arm skills read, with their defaults (a START without settings uses these).
 ARM_SETTINGS = {
@@ -95,21 +94,24 @@ def _build_walk(goal: Walk.Goal, settings: Mapping[str, float], context: SkillCo
 
 
 # ----- NavigateToPose ----------------------------------------------------------------------------
-def _navigate_goal(goal: NavigateToPose.Goal, robot: RobotSpec) -> NavigateGoal:
+def _navigate_goal(goal: NavigateToPose.Goal, robot: RobotSpec, sim: Simulation | None = None) -> NavigateGoal:
+    """The core goal; with ``sim``, in the world frame (a goal in a robot frame is resolved from its state now)."""
     _walking(robot)
     p, o = goal.pose.pose.position, goal.pose.pose.orientation
     if not all(math.isfinite(v) for v in (p.x, p.y, p.z, o.x, o.y, o.z, o.w)):
         raise InvalidGoalError("goal pose has NaN or infinite values")
     if math.sqrt(o.x ** 2 + o.y ** 2 + o.z ** 2 + o.w ** 2) < 1e-6:
         raise InvalidGoalError("goal orientation quaternion cannot be normalised (norm 0)")
-    if goal.pose.header.frame_id not in WORLD_FRAMES:
-        raise InvalidGoalError(f"unknown frame {goal.pose.header.frame_id!r}; "
-                               f"allowed: {', '.join(f or '(empty)' for f in WORLD_FRAMES)}")
-    return NavigateGoal(p.x, p.y, yaw_of(np.array([o.w, o.x, o.y, o.z])))
+    check_frame(goal.pose.header.frame_id, robot, "goal pose")
+    if sim is None:
+        return NavigateGoal(p.x, p.y, yaw_of(np.array([o.w, o.x, o.y, o.z])))
+    pose = _in_world(goal.pose.pose, goal.pose.header.frame_id, sim)
+    return NavigateGoal(float(pose.position[0]), float(pose.position[1]), yaw_of(pose.orientation_wxyz))
 
 
 def _build_navigate(goal: NavigateToPose.Goal, settings: Mapping[str, float], context: SkillContext) -> Skill:
-    return NavigateSkill(context.walker, context.robot.base_body, context.grid, _navigate_goal(goal, context.robot), settings)
+    return NavigateSkill(context.walker, context.robot.base_body, context.grid, _navigate_goal(goal, context.robot, context.sim),
+                         settings)
 
 
 # ----- MoveArm and PickPlace ------------------------------------------------------------------
@@ -125,11 +127,6 @@ def _finite_numbers(**values: float) -> None:
     bad = [name for name, value in values.items() if not math.isfinite(value)]
     if bad:
         raise InvalidGoalError(f"{', '.join(bad)} must be finite numbers")
-
-
-def _check_arm_frame(frame: str, robot: RobotSpec, what: str) -> None:
-    if frame not in ARM_FRAMES and frame != robot.base_body:
-        raise InvalidGoalError(f"unknown {what} frame {frame!r}; allowed: world (or empty), odom, {robot.base_body}")
 
 
 def _validate_move(goal: MoveArm.Goal, robot: RobotSpec) -> str:
@@ -150,28 +147,17 @@ def _validate_move(goal: MoveArm.Goal, robot: RobotSpec) -> str:
     if math.sqrt(o.w ** 2 + o.x ** 2 + o.y ** 2 + o.z ** 2) < 1e-6 and goal.orientation_tolerance != 0.0:
         raise InvalidGoalError("target orientation quaternion cannot be normalised (norm 0); "
                                "give a unit quaternion, or orientation_tolerance 0 for position only")
-    _check_arm_frame(goal.target.header.frame_id, robot, "target")
+    check_frame(goal.target.header.frame_id, robot, "target")
     return arm
 
 
 def _in_world(pose: PoseMsg, frame: str, sim: Simulation) -> Pose:
-    """A pose given in ``frame`` (world, odom or the robot's base body), in the world frame, from the sim's state."""
+    """A pose given in ``frame`` (any frame of /tf: :mod:`sim_bridge.frames`), in the world frame, from the sim's state."""
     p, o = pose.position, pose.orientation
     quat = np.array([o.w, o.x, o.y, o.z])
     norm = float(np.linalg.norm(quat))
     local = Pose(np.array([p.x, p.y, p.z]), quat / norm if norm >= 1e-6 else np.array([1.0, 0.0, 0.0, 0.0]))
-    if frame in ARM_FRAMES:
-        return local
-    return compose(sim.body_pose(frame), local)
-
-
-def compose(parent: Pose, child: Pose) -> Pose:
-    """``child`` given in ``parent``'s frame, expressed in the frame ``parent`` is given in."""
-    rotation = np.empty(9)
-    mujoco.mju_quat2Mat(rotation, parent.orientation_wxyz)
-    orientation = np.empty(4)
-    mujoco.mju_mulQuat(orientation, parent.orientation_wxyz, child.orientation_wxyz)
-    return Pose(parent.position + rotation.reshape(3, 3) @ child.position, orientation)
+    return to_world(sim.model, sim.data, frame, local)
 
 
 def _setting(settings: Mapping[str, float], name: str) -> float:
@@ -205,12 +191,15 @@ def _validate_pick(goal: PickPlace.Goal, robot: RobotSpec) -> str:
         p = goal.pick_pose.pose.position
         if not all(math.isfinite(v) for v in (p.x, p.y, p.z)):
             raise InvalidGoalError("give object_id, or a finite pick_pose")
-        _check_arm_frame(goal.pick_pose.header.frame_id, robot, "pick_pose")
-    if goal.place_pose.header.frame_id not in ARM_FRAMES:
-        raise InvalidGoalError(f"place_pose frame {goal.place_pose.header.frame_id!r} is not allowed; use world (or empty)")
+        check_frame(goal.pick_pose.header.frame_id, robot, "pick_pose")
+    check_frame(goal.place_pose.header.frame_id, robot, "place_pose")
     p = goal.place_pose.pose.position
     if not all(math.isfinite(v) for v in (p.x, p.y, p.z)):
         raise InvalidGoalError("place_pose has NaN or infinite values")
+    if is_world(goal.place_pose.header.frame_id):  # in a robot frame it is judged in /sim, from the frame's pose
+        problem = place_problem(robot.arm_scene, (p.x, p.y, p.z))
+        if problem:
+            raise InvalidGoalError(problem)
     return arm
 
 
@@ -229,9 +218,10 @@ def _build_pick(goal: PickPlace.Goal, settings: Mapping[str, float], context: Sk
     arm = _validate_pick(goal, context.robot)
     if context.pick_place is None:
         raise InvalidGoalError(f"robot {context.robot.name!r} has no objects to pick")
-    p = goal.place_pose.pose.position
+    place = _in_world(goal.place_pose.pose, goal.place_pose.header.frame_id, context.sim).position
     task = PickPlaceGoal(
-        object_name=goal.object_id or _object_at(goal, context.sim), place_position=(p.x, p.y, p.z), arm=arm,
+        object_name=goal.object_id or _object_at(goal, context.sim),
+        place_position=(float(place[0]), float(place[1]), float(place[2])), arm=arm,
         approach_height=goal.approach_height or _setting(settings, "approach_height"),
         lift_height=goal.lift_height or _setting(settings, "lift_height"),
         grip_force=goal.grasp_force or _setting(settings, "gripper_force"),

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
+from robot_models import ArmScene
 from sim_bridge.arm.controller import ArmController
 from sim_bridge.arm.kinematics import quat_to_mat
 from sim_bridge.errors import InvalidGoalError, UnknownNameError
@@ -53,8 +54,9 @@ class PickPlaceGoal:
 
     Attributes:
         object_name: a graspable object of the scene (``RobotSpec.objects``).
-        place_position: where the object's centre goes, world frame [m]; z is replaced by
-            table top + half object size.
+        place_position: where the object goes, world frame [m]: x, y of its centre on the table, and
+            z either the table top (where it rests) or the height of its centre resting there,
+            within ``PLACE_Z_TOLERANCE_M``; it is placed resting on the table (see ``place_problem``).
         place_yaw: object yaw at the place pose [rad]; None keeps the yaw it has when grasped
             (modulo the box's quarter-turn symmetry).
         arm: arm with a gripper.
@@ -137,6 +139,35 @@ class _Run:
     placement_error: float = math.nan
 
 
+PLACE_Z_TOLERANCE_M = 0.01  # a place height this close to the table top or to the resting centre is honoured
+
+
+def place_problem(scene: ArmScene, position: tuple[float, float, float] | np.ndarray) -> str:
+    """Why an object cannot be placed at ``position`` (world frame [m]); "" when it can.
+
+    Objects are placed resting on the table: x and y must keep the whole object on the table top,
+    and z must say "on the table": the table top's height or the resting centre's (table top + half
+    the object), each within ``PLACE_Z_TOLERANCE_M``. A place in mid-air or under the table cannot be
+    honoured and is refused rather than quietly moved.
+    """
+    x, y, z = (float(v) for v in position)
+    if not all(math.isfinite(v) for v in (x, y, z)):
+        return f"place position ({x}, {y}, {z}) must be finite"
+    top, half = scene.objects_table_top_z, scene.object_half_size
+    if top is None or scene.table_xy_bounds is None:
+        return "this scene has no table to place objects on"
+    bounds = scene.table_xy_bounds
+    x_low, x_high, y_low, y_high = bounds[0] + half, bounds[1] - half, bounds[2] + half, bounds[3] - half
+    if not (x_low <= x <= x_high and y_low <= y <= y_high):
+        return (f"place position ({x:.3f}, {y:.3f}) is off the table: x must be in [{x_low:.3f}, {x_high:.3f}] m "
+                f"and y in [{y_low:.3f}, {y_high:.3f}] m (world frame)")
+    if not top - PLACE_Z_TOLERANCE_M <= z <= top + half + PLACE_Z_TOLERANCE_M:
+        return (f"place height z = {z:.3f} m (world frame) cannot be honoured: objects are placed resting on the "
+                f"table; give z = {top:.3f} m (the table top) or {top + half:.3f} m (the resting centre), "
+                f"within {PLACE_Z_TOLERANCE_M * 100:g} cm")
+    return ""
+
+
 def _tool_down_quat(yaw: float) -> np.ndarray:
     """Tool z axis pointing down, tool x axis at ``yaw`` [rad] about world z: Rz(yaw) Rx(pi)."""
     return np.array([0.0, math.cos(0.5 * yaw), math.sin(0.5 * yaw), 0.0])
@@ -213,15 +244,9 @@ class PickPlace:
         if not info.gripper_joints:
             with_gripper = [a for a, i in self.arm.arms.items() if i.gripper_joints]
             raise InvalidGoalError(f"arm {goal.arm!r} has no gripper; arms with a gripper: {', '.join(with_gripper) or 'none'}")
-        bounds = self.arm.kinematics.scene.table_xy_bounds
-        x, y, _ = goal.place_position
-        margin = self.half_size
-        if bounds is not None:
-            x_low, x_high, y_low, y_high = bounds[0] + margin, bounds[1] - margin, bounds[2] + margin, bounds[3] - margin
-            if not (x_low <= x <= x_high and y_low <= y <= y_high):
-                raise InvalidGoalError(
-                    f"place position ({x:.3f}, {y:.3f}) is off the table: x must be in [{x_low:.3f}, "
-                    f"{x_high:.3f}] m and y in [{y_low:.3f}, {y_high:.3f}] m")
+        problem = place_problem(self.arm.kinematics.scene, goal.place_position)
+        if problem:
+            raise InvalidGoalError(problem)
         data = self._require_data()
         assert self._model is not None  # set with the data
         body = self._model.body(goal.object_name).id

@@ -164,3 +164,58 @@ def test_pick_place_refuses_unknown_objects(client, pick_place):
     goal = PickPlace.Goal(object_id="mug")
     goal.place_pose.pose.position.x = 0.4
     assert not send(client, pick_place, goal).handle.accepted
+
+
+def test_pick_place_in_the_arms_base_frame_and_relative_to_another_box(client, pick_place):
+    """Goals in any /tf frame: the arm's base (panda_link0) and an object's own frame (box_0)."""
+    objects = client.record(ObjectStates, "/objects", keep=1000)
+    client.wait_for(lambda: objects.count > 0, 30.0, "/objects")
+    assert objects.latest.header.frame_id == "world", "every message names its frame"
+    index = {name: i for i, name in enumerate(objects.latest.names)}
+    goal = PickPlace.Goal(object_id="box_2")
+    goal.place_pose.header.frame_id = "panda_link0"
+    goal.place_pose.pose.position.x, goal.place_pose.pose.position.y = 0.45, -0.30
+    outcome = result(client, send(client, pick_place, goal), timeout=240.0)
+    assert outcome.result.error_code == PickPlace.Result.SUCCESS, outcome.result.error_msg
+    # The same place, given relative to box_0 (picked by pick_pose in its own frame: its origin).
+    box_0 = objects.latest.poses[index["box_0"]].position
+    relative = PickPlace.Goal()
+    relative.pick_pose.header.frame_id = "box_2"
+    relative.place_pose.header.frame_id = "box_0"  # 12 cm beside box_0, at its centre's height (resting)
+    relative.place_pose.pose.position.y = -0.12
+    relative.place_pose.pose.orientation.w = 1.0
+    outcome = result(client, send(client, pick_place, relative), timeout=240.0)
+    assert outcome.result.error_code == PickPlace.Result.SUCCESS, outcome.result.error_msg
+    client.wait_for(lambda: objects.count > 0, 10.0, "/objects")
+    final = objects.latest.poses[index["box_2"]].position
+    # box_0's frame may be yawed a little; 12 cm beside it within a few mm
+    assert math.dist((final.x, final.y), (box_0.x, box_0.y)) == pytest.approx(0.12, abs=0.006)
+    assert abs(final.z - panda_constants.BOX_HALF_SIZE) < 0.003
+
+
+def test_move_arm_target_in_an_objects_frame(client, move_arm):
+    objects = client.record(ObjectStates, "/objects", keep=10)
+    client.wait_for(lambda: objects.count > 0, 30.0, "/objects")
+    box = objects.latest.poses[list(objects.latest.names).index("box_0")].position
+    goal = move_goal(0.0, 0.0, 0.20, frame="box_0", orientation_tolerance=0.0)  # 20 cm above box_0, position only
+    outcome = result(client, send(client, move_arm, goal))
+    assert outcome.result.error_code == MoveArm.Result.SUCCESS, outcome.result.error_msg
+    final = outcome.result.final_pose
+    assert final.header.frame_id == "world"
+    assert math.dist((final.pose.position.x, final.pose.position.y, final.pose.position.z),
+                     (box.x, box.y, box.z + 0.20)) < 0.003
+
+
+@pytest.mark.parametrize(("frame", "xyz", "expected"), [
+    ("world", (0.4, 0.3, 2.0), "cannot be honoured"),
+    ("world", (0.4, 0.3, 1e6), "cannot be honoured"),
+    ("world", (-0.8, 0.0, 0.0), "off the table"),
+    ("world", (1e9, 0.0, 0.0), "off the table"),
+    ("kitchen", (0.4, 0.3, 0.0), "known frames"),
+], ids=["z-2m", "z-1e6", "behind-the-table", "far-away", "unknown-frame"])
+def test_a_place_the_arm_cannot_honour_is_rejected_at_once(client, pick_place, frame, xyz, expected):
+    goal = PickPlace.Goal(object_id="box_1")
+    goal.place_pose.header.frame_id = frame
+    goal.place_pose.pose.position.x, goal.place_pose.pose.position.y, goal.place_pose.pose.position.z = xyz
+    assert not send(client, pick_place, goal).handle.accepted
+    assert pick_place.server_is_ready()

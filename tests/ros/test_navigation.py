@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 from action_msgs.msg import GoalStatus
 from nav_msgs.msg import OccupancyGrid
@@ -62,3 +63,31 @@ def test_a_goal_inside_an_obstacle_is_aborted_with_a_reason(client, navigate):
     assert outcome.status == GoalStatus.STATUS_ABORTED
     assert outcome.result.error_code == NavigateToPose.Result.GOAL_IN_OBSTACLE
     assert "obstacle" in outcome.result.error_msg
+
+
+def test_a_goal_in_the_robots_own_frame_is_resolved_where_it_stands(client, navigate):
+    """NavigateToPose in ``pelvis`` (any /tf frame): 0.8 m straight ahead of where the robot stands now."""
+    from nav_msgs.msg import Odometry
+
+    from nodes.conversions import yaw_of
+
+    odom = client.record(Odometry, "/odom", keep=10)
+    client.wait_for(lambda: odom.count > 0, 30.0, "/odom")
+    start = odom.latest.pose.pose
+    o = start.orientation
+    yaw = yaw_of(np.array([o.w, o.x, o.y, o.z]))
+    goal = NavigateToPose.Goal()
+    goal.pose.header.frame_id = "pelvis"
+    goal.pose.pose.position.x = 0.8
+    goal.pose.pose.orientation.w = 1.0
+    outcome = result(client, send(client, navigate, goal), timeout=300.0)
+    assert outcome.status == GoalStatus.STATUS_SUCCEEDED, outcome.result.error_msg
+    final = outcome.result.final_pose.pose.position
+    expected = (start.position.x + 0.8 * math.cos(yaw), start.position.y + 0.8 * math.sin(yaw))
+    assert math.dist((final.x, final.y), expected) <= 0.2, (final, expected)
+
+
+def test_a_goal_in_an_unknown_frame_is_rejected_with_the_known_frames(client, navigate):
+    goal = nav_goal(1.0, 0.0)
+    goal.pose.header.frame_id = "base_footprint_of_another_robot"
+    assert not send(client, navigate, goal).handle.accepted
