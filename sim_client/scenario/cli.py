@@ -1,5 +1,6 @@
 """``scenario list``, ``scenario kinds``, ``scenario check [FILE...]`` and
-``scenario run NAME|FILE [--rtf X] [--record] [--video] [--plots] [--out DIR]``."""
+``scenario run NAME|FILE [--rtf X] [--record] [--video] [--plots] [--out DIR]`` and
+``scenario sweep NAME|FILE --grid KEY=VALUES ... [--seeds 0,1] [--workers N] [--address RAY]``."""
 
 from __future__ import annotations
 
@@ -46,6 +47,28 @@ def _kinds() -> int:
     return 0
 
 
+def _sweep(options: argparse.Namespace) -> int:
+    from sim_client.scenario.sweep import SweepError, parse_grid, run_sweep
+
+    try:
+        path = schema.find(options.scenario)
+        grid = parse_grid(options.grid)
+        seeds = [int(seed) for seed in str(options.seeds).split(",") if seed.strip()]
+        if options.workers is not None and options.workers < 1:
+            raise SweepError(f"--workers must be >= 1, got {options.workers}")
+        result = run_sweep(path, grid, seeds or [0], options.out, options.address, options.workers, options.rtf)
+    except (SweepError, schema.ScenarioError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    except ValueError as error:
+        print(f"error: --seeds takes comma-separated integers: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("\ninterrupted", file=sys.stderr)
+        return 130
+    return 0 if result.passed == len(result.rows) else 1
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="scenario", description="Run headless scenario files and judge them.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -63,6 +86,19 @@ def main(argv: list[str] | None = None) -> int:
     run.add_argument("--all", action="store_true", help="--record --video --plots")
     run.add_argument("--out", type=pathlib.Path, default=pathlib.Path("scenario_runs"), help="folder for the run folders")
     run.add_argument("--attach", action="store_true", help="use nodes already running (e.g. `sim up`) instead of starting them")
+    sweep = sub.add_parser("sweep", help="run a scenario over a grid of values and seeds, in parallel on Ray",
+                           description="Run one scenario over every combination of --grid values, once per seed, "
+                           "each run on its own ROS domain, as Ray tasks (a local Ray instance, or the cluster at "
+                           "--address). Writes sweep.csv, sweep.json and sweep.png.")
+    sweep.add_argument("scenario", help="name in scenarios/ or a .yaml path")
+    sweep.add_argument("--grid", action="append", default=[], metavar="KEY=VALUES",
+                       help="a dotted path into the file and its values: a YAML list or start:stop:step, e.g. "
+                       "steps.0.send_goal.goal.speed=0.3:0.6:0.1 (repeat for more keys)")
+    sweep.add_argument("--seeds", default="0", help="comma-separated seeds, written into each run's seed (default 0)")
+    sweep.add_argument("--workers", type=int, default=None, help="runs at once on a local Ray instance (default: CPUs)")
+    sweep.add_argument("--address", default=None, help="address of a Ray cluster (e.g. ray://head:10001 or auto)")
+    sweep.add_argument("--rtf", type=float, default=None, help="real-time factor of each run (default: the file's)")
+    sweep.add_argument("--out", type=pathlib.Path, default=pathlib.Path("scenario_runs"), help="folder for the sweep folder")
     options = parser.parse_args(argv)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     os.environ.setdefault("MUJOCO_GL", "egl")
@@ -81,6 +117,8 @@ def main(argv: list[str] | None = None) -> int:
                 bad += 1
                 print(f"invalid  {error}")
         return 1 if bad else 0
+    if options.command == "sweep":
+        return _sweep(options)
     try:
         scenario = schema.load(schema.find(options.scenario))
     except schema.ScenarioError as error:
