@@ -6,7 +6,8 @@ Changes against the URDF as shipped:
   (0.20 x 0.07 m, like the real sole); visual meshes are kept for rendering, without contacts;
 - a body shell of capsules and spheres (pelvis, torso, head, limbs, hands) that touches only the
   floor and obstacles, so a fallen robot lies on the floor;
-- a floor, a light, sole/hand/IMU sites, joint armature and damping, position servos with gains
+- a floor, a light, sole/hand/IMU sites, an IMU and wrist force/torque sensors (:mod:`robot_models.sensors`),
+  joint armature and damping, position servos with gains
   that hold a stand (hip/knee 500, hip yaw 350, ankle 300, kd = 0.03 kp; waist and arms 150/3);
 - physics: 2 ms step, implicitfast, elliptic friction cone with impratio 10;
 - a ``stand`` keyframe in a slight crouch with both soles flat on the floor.
@@ -20,6 +21,7 @@ import mujoco
 import numpy as np
 
 from robot_models import g1_constants as names
+from robot_models.sensors import FootLayout, ImuLayout, SensorLayout, WristLayout, add_sensors
 from robot_models.spec import (
     ArmScene,
     Obstacle,
@@ -51,6 +53,15 @@ WALKING = WalkingLimits(
     max_walk_distance_m=100.0,
     fall_height_m=0.45,  # the pelvis stands at 0.76 m in the stand keyframe
     fall_tilt_rad=math.radians(50.0),
+)
+
+
+SENSORS = SensorLayout(
+    imu=ImuLayout(frame=names.IMU_FRAME, body=names.ROOT_BODY, position_in_body=names.IMU_SITE_IN_PELVIS),
+    feet=(FootLayout("left_foot", names.LEFT_SOLE_SITE, names.LEFT_FOOT_BODY, names.LEFT_SOLE_GEOM),
+          FootLayout("right_foot", names.RIGHT_SOLE_SITE, names.RIGHT_FOOT_BODY, names.RIGHT_SOLE_GEOM)),
+    wrists=(WristLayout("left_wrist", "left_arm", names.LEFT_WRIST_FT_SITE, names.LEFT_HAND_BODY),
+            WristLayout("right_wrist", "right_arm", names.RIGHT_WRIST_FT_SITE, names.RIGHT_HAND_BODY)),
 )
 
 
@@ -137,6 +148,7 @@ def build_spec() -> mujoco.MjSpec:
     spec.body(names.ROOT_BODY).add_site(name=names.IMU_SITE, pos=list(names.IMU_SITE_IN_PELVIS), size=[0.01] * 3)
 
     _add_body_shell(spec)
+    add_sensors(spec, SENSORS)
 
     world = spec.worldbody
     world.add_geom(
@@ -229,4 +241,5 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
         obstacles=obstacles,
         arm_scene=_arm_scene(model),
         walking=WALKING,
+        sensors=SENSORS,
     )

@@ -82,6 +82,9 @@ BODY_SHELL: Final[tuple[tuple[str, str, str, float, Vec3, Vec3 | None], ...]] = 
     ("right_hand_shell", "right_wrist_yaw_link", "sphere", 0.04, (0.06, 0.0, 0.0), None),
 )
 IMU_SITE_IN_PELVIS: Final = (0.04525, 0.0, -0.08339)
+IMU_FRAME: Final = "imu_in_pelvis"  # the URDF's link name of the pelvis IMU (a site here)
+LEFT_WRIST_FT_SITE: Final = "left_wrist_ft"  # force/torque sensors between each hand and its arm
+RIGHT_WRIST_FT_SITE: Final = "right_wrist_ft"
 
 # Scenes. "open": the robot on an empty floor. "course": a few static boxes to walk around,
 # as (name, centre x, centre y, half size x, half size y, height) [m].

@@ -17,6 +17,7 @@ import mujoco
 import numpy as np
 
 from robot_models import panda_constants as names
+from robot_models.sensors import SensorLayout, WristLayout, add_sensors
 from robot_models.spec import (
     ArmScene,
     GraspLimits,
@@ -35,6 +36,7 @@ FINGER_KP = 1000.0
 FINGER_KV = 50.0
 FINGER_FORCE_LIMIT_N = 70.0
 GRASP = GraspLimits(max_force_n=FINGER_FORCE_LIMIT_N, default_force_n=20.0)
+SENSORS = SensorLayout(wrists=(WristLayout("wrist", "arm", names.WRIST_FT_SITE, names.HAND_BODY),))
 CONTACT_SOLREF = [0.004, 1.0]
 GRASP_FRICTION = [1.0, 0.02, 0.001]
 
@@ -66,6 +68,7 @@ def build_spec() -> mujoco.MjSpec:
         if geom.rgba[0] == 0.5 and geom.rgba[1] == 0.5 and geom.rgba[2] == 0.5:
             geom.rgba = [0.92, 0.92, 0.92, 1.0]
     spec.body(names.HAND_BODY).add_site(name=names.TCP_SITE, pos=list(names.TCP_IN_HAND), size=[0.005] * 3)
+    add_sensors(spec, SENSORS)
 
     world = spec.worldbody
     world.add_geom(name=names.FLOOR_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05],
@@ -159,4 +162,5 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
         scene=scene,
         arm_scene=_arm_scene(),
         grasp=GRASP,
+        sensors=SENSORS,
     )

@@ -20,6 +20,7 @@ LEFT_FINGER_BODY: Final = "panda_leftfinger"
 RIGHT_FINGER_BODY: Final = "panda_rightfinger"
 TCP_SITE: Final = "tcp"
 TCP_IN_HAND: Final = (0.0, 0.0, 0.1034)
+WRIST_FT_SITE: Final = "panda_wrist_ft"  # force/torque sensor at the flange, between the hand and link 7
 
 TABLE_BODY: Final = "table"
 TABLE_GEOM: Final = "table_top"

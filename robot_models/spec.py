@@ -9,6 +9,8 @@ from dataclasses import dataclass, field
 
 import mujoco
 
+from robot_models.sensors import SensorLayout
+
 
 class RobotModelError(Exception):
     """Base error of the robot model layer."""
@@ -162,6 +164,7 @@ class RobotSpec:
             controllers read it instead of branching on the robot's name.
         walking: defaults and limits of the walking skills (None for a robot that does not walk).
         grasp: defaults and limits of grasping (None for a robot without grippers).
+        sensors: the IMU, sole and wrist sensors (names, frames); none by default.
     """
 
     name: str
@@ -184,6 +187,7 @@ class RobotSpec:
     arm_scene: ArmScene = field(default_factory=ArmScene)
     walking: WalkingLimits | None = None
     grasp: GraspLimits | None = None
+    sensors: SensorLayout = field(default_factory=SensorLayout)
 
     def __post_init__(self) -> None:
         if self.arm_scene.grippers and self.grasp is None:

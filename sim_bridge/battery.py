@@ -1,0 +1,161 @@
+"""A battery drained by the simulated actuators: integrated in the control step, so it is deterministic.
+
+Electrical power = idle draw + sum over actuators of |tau * qdot| / drive efficiency (a motor
+draws power for negative work too; no regeneration). :class:`BatteryMeter` is an in-loop controller
+that integrates it at every control step from the actuator forces and velocities of the physics,
+whatever rate anyone reads it at; it writes no command.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from sim_bridge.controller import Controller
+
+FULL_PERCENT = 100.0
+SMOOTHING_S = 0.5  # time constant of the reported power [s]
+
+
+@dataclass(frozen=True)
+class BatteryConfig:
+    """The battery model's settings (each has a ROS parameter with this range on /power).
+
+    Attributes:
+        capacity_wh: usable energy of a full battery [Wh], 10..10000.
+        idle_power_w: draw of the computers and electronics, always on [W], 0..2000.
+        drive_efficiency: mechanical power out per electrical power in of the drives, 0.05..1.
+        low_threshold_percent: below this level Walk and NavigateToPose refuse to start and abort, 0..100 [%].
+        voltage_full_v, voltage_empty_v: open-circuit voltage at 100 % and 0 % (linear between) [V].
+    """
+
+    capacity_wh: float = 432.0  # the G1's 9 Ah pack at 48 V nominal
+    idle_power_w: float = 60.0
+    drive_efficiency: float = 0.6
+    low_threshold_percent: float = 20.0
+    voltage_full_v: float = 54.6
+    voltage_empty_v: float = 42.0
+
+    def __post_init__(self) -> None:
+        limits = {"capacity_wh": (10.0, 10000.0), "idle_power_w": (0.0, 2000.0), "drive_efficiency": (0.05, 1.0),
+                  "low_threshold_percent": (0.0, 100.0)}
+        for name, (low, high) in limits.items():
+            value = getattr(self, name)
+            if not (math.isfinite(value) and low <= value <= high):
+                raise ValueError(f"battery {name} must be in [{low:g}, {high:g}], got {value}")
+
+
+class Battery:
+    """State of charge, drained by :meth:`drain`. Starts full; :meth:`reset` fills it again."""
+
+    def __init__(self, config: BatteryConfig | None = None) -> None:
+        self.config = config or BatteryConfig()
+        self._energy_j = self._capacity_j
+        self.power_w = self.config.idle_power_w  # electrical power, smoothed [W]
+        self.consumed_j = 0.0  # since the last reset [J]
+        self.mechanical_j = 0.0  # actuators' |tau * qdot| integrated since the last reset [J]
+
+    @property
+    def _capacity_j(self) -> float:
+        return self.config.capacity_wh * 3600.0
+
+    @property
+    def level_percent(self) -> float:
+        """State of charge [%], 0..100."""
+        return FULL_PERCENT * self._energy_j / self._capacity_j
+
+    @property
+    def low(self) -> bool:
+        return self.level_percent < self.config.low_threshold_percent
+
+    @property
+    def voltage_v(self) -> float:
+        c = self.config
+        return c.voltage_empty_v + (c.voltage_full_v - c.voltage_empty_v) * self.level_percent / FULL_PERCENT
+
+    @property
+    def energy_wh(self) -> float:
+        return self._energy_j / 3600.0
+
+    def configure(self, config: BatteryConfig) -> None:
+        """New settings; the level [%] is kept."""
+        level = self.level_percent
+        self.config = config
+        self.set_level(level)
+
+    def set_level(self, percent: float) -> None:
+        """Set the state of charge [%].
+
+        Raises:
+            ValueError: outside 0..100 or not finite.
+        """
+        if not (math.isfinite(percent) and 0.0 <= percent <= FULL_PERCENT):
+            raise ValueError(f"battery level must be in [0, 100] %, got {percent}")
+        self._energy_j = self._capacity_j * percent / FULL_PERCENT
+
+    def reset(self) -> None:
+        """Full again; the counters restart."""
+        self._energy_j = self._capacity_j
+        self.consumed_j = self.mechanical_j = 0.0
+        self.power_w = self.config.idle_power_w
+
+    def drain(self, mechanical_power_w: float, dt: float) -> None:
+        """Draw the idle power plus ``mechanical_power_w`` [W] through the drives for ``dt`` [s]."""
+        electrical = self.config.idle_power_w + mechanical_power_w / self.config.drive_efficiency
+        used = electrical * dt
+        self._energy_j = max(0.0, self._energy_j - used)
+        self.consumed_j += used
+        self.mechanical_j += mechanical_power_w * dt
+        self.power_w += (electrical - self.power_w) * min(1.0, dt / SMOOTHING_S)
+
+
+class BatteryMeter:
+    """In-loop controller that drains a battery by the actuators' mechanical power at every control step.
+
+    Always active (the energy is integrated over every control step: deterministic, independent of
+    who reads it); it commands nothing. Power is taken as sum |actuator_force * actuator_velocity|.
+    """
+
+    def __init__(self, battery: Battery) -> None:
+        self.battery = battery
+
+    @property
+    def active(self) -> bool:
+        return True
+
+    def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        self.battery.reset()
+
+    def update(self, model: mujoco.MjModel, data: mujoco.MjData, control_dt: float) -> None:
+        power = float(np.abs(data.actuator_force * data.actuator_velocity).sum())
+        self.battery.drain(power, control_dt)
+
+
+class Metered:
+    """A controller slot's occupant with a battery meter in front: the meter runs every control step, ``inner``
+    when it is active. Lets a meter share a slot (the simulation keeps one controller per slot)."""
+
+    def __init__(self, inner: Controller, meter: BatteryMeter) -> None:
+        self.inner = inner
+        self.meter = meter
+
+    @property
+    def active(self) -> bool:
+        return True
+
+    def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        self.meter.reset(model, data)
+        self.inner.reset(model, data)
+
+    def release(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        release = getattr(self.inner, "release", None)
+        if release is not None:
+            release(model, data)
+
+    def update(self, model: mujoco.MjModel, data: mujoco.MjData, control_dt: float) -> None:
+        self.meter.update(model, data, control_dt)
+        if self.inner.active:
+            self.inner.update(model, data, control_dt)
