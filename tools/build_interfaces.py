@@ -24,7 +24,7 @@ import sysconfig
 import numpy
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-PACKAGES = ("tf2_msgs", "sim_interfaces")  # build order
+PACKAGES = ("tf2_msgs", "simulation_interfaces", "sim_interfaces")  # build order
 FARM_PYTHON_INCLUDE = "/opt/python/cp311-cp311/include/python3.11"
 FARM_NUMPY_INCLUDE = "/opt/python/cp311-cp311/lib/python3.11/site-packages/numpy/_core/include"
 

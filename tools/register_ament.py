@@ -20,7 +20,8 @@ import tomllib
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 PACKAGE = "sim"
-INTERFACE_PACKAGES = ("sim_interfaces", "tf2_msgs")  # Python packages the set-up builds (tools/build_interfaces.py)
+# Python packages the set-up builds (tools/build_interfaces.py)
+INTERFACE_PACKAGES = ("sim_interfaces", "simulation_interfaces", "tf2_msgs")
 
 SETUP_SH = """\
 # Source this file (`. {prefix}/setup.sh`) in a shell where a ROS 2 Jazzy ros2cli runs, as you

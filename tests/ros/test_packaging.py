@@ -19,7 +19,7 @@ def test_sim_is_registered_in_the_ament_index_with_its_executables():
 
 
 def test_interface_packages_are_installed_and_importable():
-    for package in ("sim_interfaces", "tf2_msgs"):
+    for package in ("sim_interfaces", "simulation_interfaces", "tf2_msgs"):
         assert (PREFIX / "share/ament_index/resource_index/packages" / package).is_file()
     assert (PREFIX / "share/sim_interfaces/action/Walk.action").is_file()
     from tf2_msgs.msg import TFMessage
@@ -31,3 +31,8 @@ def test_interface_packages_are_installed_and_importable():
     assert hasattr(NavigateToPose.Feedback(), "distance_remaining")
     assert hasattr(MoveArm.Result(), "error_msg")
     assert TFMessage().transforms == []
+    assert (PREFIX / "share/simulation_interfaces/action/SimulateSteps.action").is_file()
+    from simulation_interfaces.action import SimulateSteps
+    from simulation_interfaces.msg import Result
+
+    assert Result.RESULT_OK == 1 and hasattr(SimulateSteps.Feedback(), "remaining_steps")

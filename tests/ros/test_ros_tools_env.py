@@ -21,7 +21,7 @@ import textwrap
 from tests.ros.processes import running
 
 PREFIX = pathlib.Path(sys.prefix)
-PROJECT_LIBRARIES = ("libsim_interfaces", "libtf2_msgs")
+PROJECT_LIBRARIES = ("libsim_interfaces", "libsimulation_interfaces", "libtf2_msgs")
 
 # Loads types by name (rosidl's "pkg/kind/Name" form) the way ros2cli's get_message/get_service/
 # get_action do, then uses them against the running /sim: a service call, a subscription that
@@ -95,7 +95,8 @@ def test_setup_script_exports_the_ament_python_and_library_paths(tmp_path):
     ament, python_path, library_path = shown.stdout.splitlines()
     assert ament.split(os.pathsep) == [str(PREFIX), "/opt/ros/jazzy"]
     python_dir = pathlib.Path(python_path.split(os.pathsep)[0])
-    assert sorted(p.name for p in python_dir.iterdir()) == ["sim_interfaces", "tf2_msgs"]  # nothing else of the venv
+    # the interface packages and nothing else of the venv
+    assert sorted(p.name for p in python_dir.iterdir()) == ["sim_interfaces", "simulation_interfaces", "tf2_msgs"]
     assert library_path.split(os.pathsep)[0] == env["LD_LIBRARY_PATH"].split(os.pathsep)[0]  # the tool's own first
     assert library_path.split(os.pathsep)[-1] == str(PREFIX / "lib")
 
@@ -116,8 +117,9 @@ def test_a_tool_on_its_own_library_path_uses_the_projects_types_after_sourcing_s
 
 def test_every_generated_library_and_extension_carries_the_runpath():
     site = pathlib.Path(sysconfig.get_paths()["purelib"])
-    objects = [*(PREFIX / "lib").glob("libsim_interfaces*.so"), *(PREFIX / "lib").glob("libtf2_msgs*.so"),
-               *(site / "sim_interfaces").glob("*.so"), *(site / "tf2_msgs").glob("*.so")]
+    packages = ("sim_interfaces", "simulation_interfaces", "tf2_msgs")
+    objects = [path for package in packages
+               for path in (*(PREFIX / "lib").glob(f"lib{package}_*.so"), *(site / package).glob("*.so"))]
     assert len(objects) >= 10
     for path in objects:
         dynamic = subprocess.run(["readelf", "-d", str(path)], capture_output=True, text=True, check=True).stdout
