@@ -1,4 +1,4 @@
-"""The ``/locomotion`` node: Walk and NavigateToPose action servers for the G1.
+"""The ``/locomotion`` node: Walk and NavigateToPose action servers and the /reset_pose service for the G1.
 
 Both run as skills inside ``/sim``'s control step (:mod:`sim_bridge.skills.locomotion`): this node
 validates, relays and owns the parameters. ``walking_speed`` sets the pace of both actions; a change
@@ -18,6 +18,7 @@ import robot_models
 from nodes.cli import StartupError, help_text
 from nodes.common import spin_server
 from nodes.parameters import ParameterSpec, declare
+from nodes.reset_pose_service import ResetPoseService
 from nodes.skill_server import skill_servers
 
 NODE_NAME = "locomotion"
@@ -56,7 +57,8 @@ class LocomotionServer(Node):
         self._servers = skill_servers(self, spec, {"walk": "/walk", "navigate_to_pose": "/navigate_to_pose"},
                                       self._settings, lambda: 1.0 / self._param("feedback_rate"))
         self.add_post_set_parameters_callback(self._on_parameters)
-        self.get_logger().info(f"serving /walk and /navigate_to_pose for {robot}")
+        self._reset_pose = ResetPoseService(self)  # /reset_pose: the ResetPose skill, answered when the pose is reached
+        self.get_logger().info(f"serving /walk, /navigate_to_pose and /reset_pose for {robot}")
 
     def _param(self, name: str) -> float:
         return float(self.get_parameter(name).value)
@@ -77,8 +79,9 @@ def help_page(program: str) -> str:
     specs = (ParameterSpec("robot", "", "robot of the running /sim (empty = ask /sim)", read_only=True), *parameters(robot))
     return help_text(program, NODE_NAME, """\
 The /locomotion node: the Walk (/walk) and NavigateToPose (/navigate_to_pose) action servers of a
-walking robot. Both run as skills inside /sim's control step; start the sim node first (it waits
-for /sim up to 30 s and asks it which robot it simulates).""", specs)
+walking robot, and the /reset_pose service (std_srvs/Trigger). All run as skills inside /sim's
+control step; start the sim node first (it waits for /sim up to 30 s and asks it which robot it
+simulates).""", specs)
 
 
 def main(args: list[str] | None = None) -> int:

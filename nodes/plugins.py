@@ -21,10 +21,12 @@ from rclpy.parameter import Parameter
 
 from nodes.conversions import set_time
 from nodes.parameters import ParameterSpec, declare
+from nodes.sim_sensors import SensorStreams
 from nodes.skill_bridge import SkillBridge
 from nodes.skill_protocol import SkillContext
 from sim_bridge import SimError, Simulation, Slot
 from sim_bridge.arm import ArmController, PickPlace
+from sim_bridge.battery import Battery, BatteryConfig, BatteryMeter, Metered
 from sim_bridge.locomotion import PARAMETER_RANGES, GaitParameters, LocomotionMode, WalkingController
 from sim_bridge.navigation import grid_from_obstacles
 from sim_bridge.skills import LEGS, SkillHost
@@ -65,10 +67,14 @@ class InLoopPlugins:
         self.walking: WalkingController | None = None
         hosts: dict[str, SkillHost] = {}
         context = SkillContext(sim)
+        pack = sim.robot.sensors.battery
+        # The battery is drained in the control step by a meter in the legs' slot (every step, deterministic).
+        self.battery = Battery(BatteryConfig.of(pack)) if pack is not None and sim.robot.feet_sites else None
+        context.battery = self.battery
         if sim.robot.feet_sites:
             self.walking = WalkingController(sim.model)
-            legs = SkillHost(self.walking)  # Walk and NavigateToPose run in front of the walker
-            sim.set_controller(Slot.LOCOMOTION, legs)
+            legs = SkillHost(self.walking)  # Walk, NavigateToPose and ResetPose run in front of the walker
+            sim.set_controller(Slot.LOCOMOTION, legs if self.battery is None else Metered(legs, BatteryMeter(self.battery)))
             hosts[LEGS] = legs
             context.walker = self.walking
             context.grid = grid_from_obstacles(sim.robot.obstacles)
@@ -91,6 +97,7 @@ class InLoopPlugins:
             sim.set_controller(Slot.ARM, arms)
             hosts.update({arm: arms for arm in self.arms.arms})
         self.skills = SkillBridge(node, sim, lock, hosts, context)
+        self.sensors = SensorStreams(node, sim, lock, self.battery)
 
     # ----- /cmd_vel ----------------------------------------------------------------------
     def on_cmd_vel(self, msg: Twist) -> None:
@@ -158,6 +165,7 @@ class InLoopPlugins:
             params = self._gait_from(parameters)
             if params is not None:
                 self.walking.set_gait_parameters(params)
+        self.sensors.on_parameters(parameters)
 
     # ----- state publishing and resets ---------------------------------------------------
     def after_step(self) -> int:
@@ -165,11 +173,13 @@ class InLoopPlugins:
 
         Returns how many goals ended.
         """
+        self.sensors.publish_due(self._sim.time)
         return self.skills.publish_changed()
 
     def publish_state(self, now: float) -> None:
         """Under the lock, when controller state topics are due."""
         self.skills.publish_all()
+        self.sensors.publish_battery(now)
         if self.walking is not None and self.walking.qp_fallback_count != self._qp_fallbacks_reported:
             grew = self.walking.qp_fallback_count > self._qp_fallbacks_reported
             self._qp_fallbacks_reported = self.walking.qp_fallback_count  # a silent failure made visible
@@ -199,6 +209,7 @@ class InLoopPlugins:
         self._cmd_vel = (0.0, 0.0, 0.0)
         self._cmd_vel_time = -math.inf
         self._cmd_vel_live = False
+        self.sensors.on_reset()
         self.skills.publish_changed()  # the goals the reset ended, at once
 
     def on_fault(self, reason: str) -> None:

@@ -26,12 +26,15 @@ from robot_models import RobotSpec, WalkingLimits
 from sim_bridge import Simulation
 from sim_bridge.arm import PickPlaceGoal
 from sim_bridge.arm.pick_place import place_problem
+from sim_bridge.battery import Battery
 from sim_bridge.errors import InvalidGoalError
 from sim_bridge.frames import check_frame, is_world, to_world
 from sim_bridge.skills import LEGS, NavigateGoal, NavigateSkill, Skill, SkillOutcome, Values, WalkGoal, WalkSkill
 from sim_bridge.skills.arm import MoveArmGoal, MoveArmSkill, PickPlaceSkill
+from sim_bridge.skills.battery_guard import BatteryGuard
+from sim_bridge.skills.reset_pose import ResetPoseGoal, ResetPoseSkill
 from sim_bridge.state import Pose
-from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, Walk
+from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, ResetPose, Walk
 
 SKILL_COMMAND_TOPIC = "/sim/skill_command"
 SKILL_STATE_TOPIC = "/sim/skill_state"
@@ -53,6 +56,7 @@ class SkillContext:
     grid: Any = None  # OccupancyGrid of the scene's static obstacles
     arms: Any = None  # ArmController
     pick_place: Any = None  # PickPlace
+    battery: Battery | None = None  # drained in the control step; Walk and NavigateToPose are guarded by it
 
     @property
     def robot(self) -> RobotSpec:
@@ -89,8 +93,13 @@ def _walk_goal(goal: Walk.Goal, robot: RobotSpec) -> WalkGoal:
     return WalkGoal(goal.distance, goal.speed, goal.timeout, _walking(robot))
 
 
+def _guarded(skill: Skill, context: SkillContext) -> Skill:
+    """A locomotion skill that refuses to start, or stops, on a low battery (``BATTERY_LOW``)."""
+    return skill if context.battery is None else BatteryGuard(skill, context.battery)
+
+
 def _build_walk(goal: Walk.Goal, settings: Mapping[str, float], context: SkillContext) -> Skill:
-    return WalkSkill(context.walker, context.robot.base_body, _walk_goal(goal, context.robot), settings)
+    return _guarded(WalkSkill(context.walker, context.robot.base_body, _walk_goal(goal, context.robot), settings), context)
 
 
 # ----- NavigateToPose ----------------------------------------------------------------------------
@@ -110,8 +119,18 @@ def _navigate_goal(goal: NavigateToPose.Goal, robot: RobotSpec, sim: Simulation 
 
 
 def _build_navigate(goal: NavigateToPose.Goal, settings: Mapping[str, float], context: SkillContext) -> Skill:
-    return NavigateSkill(context.walker, context.robot.base_body, context.grid, _navigate_goal(goal, context.robot, context.sim),
-                         settings)
+    return _guarded(NavigateSkill(context.walker, context.robot.base_body, context.grid,
+                                  _navigate_goal(goal, context.robot, context.sim), settings), context)
+
+
+# ----- ResetPose (served as the /reset_pose service) ----------------------------------------------
+def _reset_pose_goal(goal: ResetPose.Goal, robot: RobotSpec) -> ResetPoseGoal:
+    _walking(robot)
+    return ResetPoseGoal(goal.tolerance, goal.timeout)
+
+
+def _build_reset_pose(goal: ResetPose.Goal, settings: Mapping[str, float], context: SkillContext) -> Skill:
+    return ResetPoseSkill(context.walker, context.robot, _reset_pose_goal(goal, context.robot))
 
 
 # ----- MoveArm and PickPlace ------------------------------------------------------------------
@@ -234,6 +253,7 @@ BINDINGS: dict[str, SkillBinding] = {
     for binding in (
         SkillBinding("walk", Walk, lambda _goal, _robot: LEGS, _walk_goal, _build_walk),
         SkillBinding("navigate_to_pose", NavigateToPose, lambda _goal, _robot: LEGS, _navigate_goal, _build_navigate),
+        SkillBinding("reset_pose", ResetPose, lambda _goal, _robot: LEGS, _reset_pose_goal, _build_reset_pose),
         SkillBinding("move_arm", MoveArm, lambda goal, robot: arm_name(goal.end_effector, robot), _validate_move, _build_move),
         SkillBinding("pick_place", PickPlace, lambda goal, robot: arm_name(goal.end_effector, robot), _validate_pick,
                      _build_pick),

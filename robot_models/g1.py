@@ -21,7 +21,7 @@ import mujoco
 import numpy as np
 
 from robot_models import g1_constants as names
-from robot_models.sensors import FootLayout, ImuLayout, SensorLayout, WristLayout, add_sensors
+from robot_models.sensors import BatteryLayout, FootLayout, ImuLayout, SensorLayout, WristLayout, add_sensors
 from robot_models.spec import (
     ArmScene,
     Obstacle,
@@ -62,6 +62,8 @@ SENSORS = SensorLayout(
           FootLayout("right_foot", names.RIGHT_SOLE_SITE, names.RIGHT_FOOT_BODY, names.RIGHT_SOLE_GEOM)),
     wrists=(WristLayout("left_wrist", "left_arm", names.LEFT_WRIST_FT_SITE, names.LEFT_HAND_BODY),
             WristLayout("right_wrist", "right_arm", names.RIGHT_WRIST_FT_SITE, names.RIGHT_HAND_BODY)),
+    # The G1's 13-cell Li-ion pack: 9 Ah at 48 V nominal, 54.6 V full; ~60 W for its computers at rest.
+    battery=BatteryLayout(capacity_wh=432.0, idle_power_w=60.0, voltage_full_v=54.6, voltage_empty_v=42.0),
 )
 
 

@@ -92,12 +92,29 @@ class WristLayout:
 
 
 @dataclass(frozen=True)
+class BatteryLayout:
+    """The robot's battery pack (a robot on mains power has none).
+
+    Attributes:
+        capacity_wh: usable energy when full [Wh].
+        idle_power_w: always-on draw of its computers and electronics [W].
+        voltage_full_v, voltage_empty_v: pack voltage at 100 % and 0 % [V].
+    """
+
+    capacity_wh: float
+    idle_power_w: float
+    voltage_full_v: float
+    voltage_empty_v: float
+
+
+@dataclass(frozen=True)
 class SensorLayout:
-    """Every sensor of a robot (the defaults: none)."""
+    """Every sensor of a robot, and its battery (the defaults: none)."""
 
     imu: ImuLayout | None = None
     feet: tuple[FootLayout, ...] = ()
     wrists: tuple[WristLayout, ...] = ()
+    battery: BatteryLayout | None = None
 
     def frames(self) -> tuple[tuple[str, str], ...]:
         """(parent body, sensor frame) of every sensor frame, for /tf_static."""

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from robot_models.sensors import BatteryLayout
 from sim_bridge.controller import Controller
 
 FULL_PERCENT = 100.0
@@ -22,7 +23,7 @@ SMOOTHING_S = 0.5  # time constant of the reported power [s]
 
 @dataclass(frozen=True)
 class BatteryConfig:
-    """The battery model's settings (each has a ROS parameter with this range on /power).
+    """The battery model's settings (the first four have a ROS parameter with this range on /power).
 
     Attributes:
         capacity_wh: usable energy of a full battery [Wh], 10..10000.
@@ -38,6 +39,12 @@ class BatteryConfig:
     low_threshold_percent: float = 20.0
     voltage_full_v: float = 54.6
     voltage_empty_v: float = 42.0
+
+    @staticmethod
+    def of(pack: BatteryLayout) -> BatteryConfig:
+        """The defaults of a robot's battery pack."""
+        return BatteryConfig(capacity_wh=pack.capacity_wh, idle_power_w=pack.idle_power_w,
+                             voltage_full_v=pack.voltage_full_v, voltage_empty_v=pack.voltage_empty_v)
 
     def __post_init__(self) -> None:
         limits = {"capacity_wh": (10.0, 10000.0), "idle_power_w": (0.0, 2000.0), "drive_efficiency": (0.05, 1.0),

@@ -1,0 +1,117 @@
+"""The ``/power`` node: the battery's settings, ``/battery_state`` from a timer, and ``/get_battery_level``.
+
+The battery itself is simulated inside ``/sim``: its drain (idle draw + the actuators' mechanical
+power |tau * qdot| over the drive efficiency) is integrated at every control step, so it is
+deterministic and measured from the physics, and Walk and NavigateToPose check it there. This node
+owns the model's parameters (sent to ``/sim`` on a latched topic whenever they change), republishes
+the measured state as ``sensor_msgs/BatteryState`` on ``/battery_state`` at ``publish_rate`` Hz of
+sim time, and answers ``/get_battery_level`` at once from the latest measurement.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+from typing import Any
+
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile
+from sensor_msgs.msg import BatteryState
+
+import robot_models
+from nodes.common import spin_server
+from nodes.parameters import ParameterSpec, declare
+from nodes.sim_sensors import BATTERY_CONFIG_TOPIC, BATTERY_TOPIC, LATCHED
+from robot_models.sensors import BatteryLayout
+from sim_interfaces.msg import BatteryConfig
+from sim_interfaces.srv import GetBatteryLevel
+
+NODE_NAME = "power"
+MODEL_PARAMETERS = ("capacity_wh", "idle_power_w", "drive_efficiency", "battery_low_threshold")
+
+
+def parameters(pack: BatteryLayout) -> tuple[ParameterSpec, ...]:
+    """The node's parameters; the defaults come from the robot's battery pack."""
+    return (
+        ParameterSpec("capacity_wh", pack.capacity_wh, "usable energy of a full battery [Wh]", 10.0, 10000.0),
+        ParameterSpec("idle_power_w", pack.idle_power_w, "always-on draw of the computers and electronics [W]", 0.0, 2000.0),
+        ParameterSpec("drive_efficiency", 0.6, "mechanical power out per electrical power in of the drives", 0.05, 1.0),
+        ParameterSpec("battery_low_threshold", 20.0, "below this level [%] Walk and NavigateToPose refuse to start and "
+                      "abort with BATTERY_LOW", 0.0, 100.0),
+        ParameterSpec("publish_rate", 1.0, "/battery_state rate [Hz of sim time]", 0.1, 50.0),
+    )
+
+
+class PowerNode(Node):
+    """Serves the battery of the robot of ``/sim`` (see the module's text)."""
+
+    def __init__(self, robot: str, **kwargs: Any) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        pack = robot_models.load(robot).sensors.battery
+        if pack is None:
+            raise robot_models.RobotModelError(f"robot {robot!r} has no battery (it runs on mains power)")
+        declare(self, (ParameterSpec("robot", robot, "robot whose battery is served", read_only=True), *parameters(pack)))
+        self._lock = threading.Lock()
+        self._latest: BatteryState | None = None
+        group = MutuallyExclusiveCallbackGroup()
+        self._config_pub = self.create_publisher(BatteryConfig, BATTERY_CONFIG_TOPIC, LATCHED)
+        self._state_pub = self.create_publisher(BatteryState, "/battery_state", 10)
+        self.create_subscription(BatteryState, BATTERY_TOPIC, self._on_battery, QoSProfile(depth=10), callback_group=group)
+        self.create_service(GetBatteryLevel, "/get_battery_level", self._on_get_level, callback_group=group)
+        self._timer = self.create_timer(1.0 / self._param("publish_rate"), self._publish, callback_group=group)
+        self.add_post_set_parameters_callback(self._on_parameters)
+        self._send_config()
+        self.get_logger().info(f"serving /battery_state and /get_battery_level for {robot}")
+
+    def _param(self, name: str) -> float:
+        return float(self.get_parameter(name).value)
+
+    def _send_config(self) -> None:
+        self._config_pub.publish(BatteryConfig(
+            capacity_wh=self._param("capacity_wh"), idle_power_w=self._param("idle_power_w"),
+            drive_efficiency=self._param("drive_efficiency"), low_threshold_percent=self._param("battery_low_threshold")))
+
+    def _on_parameters(self, changed: list[Parameter]) -> SetParametersResult:
+        if any(p.name in MODEL_PARAMETERS for p in changed):
+            self._send_config()
+        if any(p.name == "publish_rate" for p in changed):
+            self._timer.timer_period_ns = int(1e9 / self._param("publish_rate"))
+            self._timer.reset()
+        return SetParametersResult(successful=True)
+
+    def _on_battery(self, msg: BatteryState) -> None:
+        with self._lock:
+            self._latest = msg
+
+    def _publish(self) -> None:
+        with self._lock:
+            latest = self._latest
+        if latest is not None:
+            self._state_pub.publish(latest)
+
+    def _on_get_level(self, request: GetBatteryLevel.Request, response: GetBatteryLevel.Response) -> GetBatteryLevel.Response:
+        with self._lock:
+            latest = self._latest
+        if latest is None:
+            response.level_percent = -1.0
+            response.message = f"no battery measurement from /sim on {BATTERY_TOPIC} yet; is /sim running?"
+            return response
+        threshold = self._param("battery_low_threshold")
+        response.level_percent = 100.0 * float(latest.percentage)
+        response.low = response.level_percent < threshold
+        response.voltage = float(latest.voltage)
+        response.message = (f"battery at {response.level_percent:.1f} %, drawing {-latest.current * latest.voltage:.0f} W"
+                            + (f"; low (below {threshold:g} %): walking is refused" if response.low else ""))
+        return response
+
+
+def main(args: list[str] | None = None) -> int:
+    """Console entry point: ``power_node`` (asks /sim for its robot)."""
+    return spin_server(lambda robot, overrides: PowerNode(robot, parameter_overrides=overrides), NODE_NAME, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
