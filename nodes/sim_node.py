@@ -42,8 +42,9 @@ from nodes.executor import ServerExecutor, drop_qos_event_handlers
 from nodes.parameters import ParameterSpec, declare, guard_parameter_services
 from nodes.plugins import InLoopPlugins
 from nodes.serialized import ClockTemplate, JointStateTemplate, TemplateError
+from nodes.sim_standard import SimulationStandard
 from nodes.tf_builder import TransformSet, link_pairs
-from sim_bridge import Pacer, Simulation, SimulationFaultError, UnknownNameError
+from sim_bridge import Pacer, SimError, Simulation, SimulationFaultError, UnknownNameError
 from sim_bridge.navigation import grid_from_obstacles
 from sim_interfaces.msg import ObjectStates
 from sim_interfaces.srv import Push, Reset, Step
@@ -240,6 +241,7 @@ class SimNode(LifecycleNode):
         self.create_service(Trigger, "~/resume", self._on_resume, callback_group=services)
         self.create_subscription(Twist, "/cmd_vel", self._on_cmd_vel, reliable, callback_group=ReentrantCallbackGroup())
         self.create_timer(1.0, self._publish_rtf)
+        self.standard = SimulationStandard(self)  # the ROS simulation standard's services and action, under ~/
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
         self._stop.clear()
@@ -423,6 +425,73 @@ class SimNode(LifecycleNode):
         self._last_rtf = 0.0 if self._paused else self._pacer.achieved_factor()
         self._rtf_pub.publish(Float64(data=self._last_rtf))
 
+    # ----- control, for the services here and in nodes/sim_standard.py (each under the lock) ----
+    @property
+    def lock(self) -> threading.RLock:
+        """The lock every change of the simulation is made under (the physics thread steps under it)."""
+        return self._lock
+
+    @property
+    def paused(self) -> bool:
+        return self._paused
+
+    @property
+    def physics_running(self) -> bool:
+        """Whether the physics thread runs (the node is active); paused or not."""
+        return self._thread is not None
+
+    def set_paused(self, paused: bool) -> bool:
+        """Pause or resume the physics thread; returns whether it was paused before."""
+        with self._lock:
+            was = self._paused
+            self._paused = paused
+            if not paused:
+                self._pacer.reanchor()
+        if not paused:
+            self._wake.set()
+        return was
+
+    def reset_scene(self, keyframe: str | None = None, keep_time: bool = True) -> None:
+        """Restore a keyframe, end the running goals and publish at once; sim time restarts at 0 unless ``keep_time``.
+
+        Raises:
+            UnknownNameError: no such keyframe (nothing is changed).
+        """
+        assert self.sim is not None and self.plugins is not None
+        with self._lock:
+            self.sim.reset(keyframe, keep_time=keep_time)
+            if not keep_time:  # every stream falls due again from t = 0
+                self._schedule = _Schedule()
+                self._pacer.reanchor()
+            self.plugins.on_reset()
+            self._publish_due(self.sim.time, force=True)
+
+    def publish_now(self) -> None:
+        """Publish every stream at the present sim time (after the state was changed from outside)."""
+        assert self.sim is not None
+        with self._lock:
+            self._publish_due(self.sim.time, force=True)
+
+    def step_while_paused(self, physics_steps: int) -> int:
+        """Advance a paused simulation by whole physics steps, publishing what falls due; returns goals ended.
+
+        Raises:
+            SimError: stepping failed (the physics diverged, a controller failed): the simulation was
+                reset to its keyframe before this is raised.
+        """
+        sim = self.sim
+        assert sim is not None
+        with self._lock:
+            target = sim.time + physics_steps * sim.physics_timestep - 1e-9
+            ended = 0
+            try:
+                while sim.time < target:
+                    ended += self._advance_to_next_event_bounded(target)
+            except Exception as error:  # a failed step is reported, the node keeps serving
+                self._recover(error)
+                raise SimError(f"{error}; the simulation was reset to its keyframe") from error
+            return ended
+
     # ----- inputs and services -----------------------------------------------------------
     def _on_cmd_vel(self, msg: Twist) -> None:
         if self.plugins is not None:
@@ -432,14 +501,12 @@ class SimNode(LifecycleNode):
         assert self.sim is not None and self.plugins is not None
         with self._lock:
             try:
-                self.sim.reset(request.keyframe or None)
+                self.reset_scene(request.keyframe or None)
             except UnknownNameError as error:
                 response.success = False
                 response.message = str(error)
                 response.sim_time = self.sim.time
                 return response
-            self.plugins.on_reset()
-            self._publish_due(self.sim.time, force=True)
             response.success = True
             response.message = f"reset to keyframe {request.keyframe or self.sim.robot.default_keyframe!r}"
             response.sim_time = self.sim.time
@@ -464,19 +531,13 @@ class SimNode(LifecycleNode):
         return response
 
     def _on_pause(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
-        with self._lock:
-            was = self._paused
-            self._paused = True
+        was = self.set_paused(True)
         response.success = True
         response.message = "already paused" if was else "paused"
         return response
 
     def _on_resume(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
-        with self._lock:
-            was = self._paused
-            self._paused = False
-            self._pacer.reanchor()
-        self._wake.set()
+        was = self.set_paused(False)
         response.success = True
         response.message = "running" if was else "already running"
         return response
@@ -570,7 +631,8 @@ def help_page(program: str) -> str:
 The /sim node: a headless MuJoCo simulation of one robot scene as a lifecycle node. It steps the
 physics (paced by real_time_factor, or on /sim/step), publishes /clock, /joint_states, /odom, /tf,
 /tf_static and /objects, consumes /cmd_vel, runs the skills of the action servers in its control
-step and serves reset, pause, resume, step and push under /sim/.""", PARAMETERS,
+step and serves reset, pause, resume, step and push under /sim/, and the ROS simulation standard
+(simulation_interfaces: get/set_simulation_state, step_simulation, simulate_steps, get/set_entity_state, ...).""", PARAMETERS,
                      f"Known robots: {', '.join(robot_models.ROBOT_NAMES)}. The gait parameters (gait.*) are declared "
                      "once a walking robot is configured: `ros2 param list /sim` shows them.")
 
