@@ -199,6 +199,8 @@ class Shell:
         request = fill(service_type.Request(), yaml.safe_load(values))
         answer = self.client.call(service_type, name, request, timeout=READY_S)
         assert getattr(answer, "success", True), f"{command}: {answer}"
+        outcome = getattr(answer, "result", None)  # simulation_interfaces answers with a Result (1 = RESULT_OK)
+        assert getattr(outcome, "result", 1) == 1, f"{command}: {outcome}"
 
     def topic_echo(self, command: str) -> None:
         self._require_nodes(command)
@@ -223,7 +225,7 @@ class Shell:
 
     def finish(self, sent: Any, command: str) -> None:
         outcome = result(self.client, sent, timeout=GOAL_WALL_S)
-        assert outcome.status == GoalStatus.STATUS_SUCCEEDED, f"{command}: {outcome.result.error_msg}"
+        assert outcome.status == GoalStatus.STATUS_SUCCEEDED, f"{command}: {outcome.result}"
 
     def finish_running(self) -> None:
         if self.running_goal is not None:
