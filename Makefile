@@ -7,7 +7,7 @@ STAMPS := $(VENV)/.stamps
 INTERFACE_FILES := $(shell find interfaces -type f)
 export MUJOCO_GL ?= egl
 
-.PHONY: setup lint demo test test-fast bench bench-sim bench-walk bench-arm bench-nav bench-idle bench-scenario bench-response clean
+.PHONY: setup lint demo test test-fast bench bench-sim bench-walk bench-arm bench-nav bench-idle bench-scenario bench-response bench-locomotion clean
 
 setup: $(STAMPS)/project
 
@@ -48,13 +48,16 @@ test: setup lint
 test-fast: setup
 	$(PY) -m pytest $(PYTEST_PARALLEL) -m "not slow"
 
-bench: bench-sim bench-walk bench-arm bench-nav bench-idle bench-scenario bench-response  ## every benchmark; figures are ratios measured in one run
+bench: bench-sim bench-walk bench-arm bench-nav bench-idle bench-scenario bench-response bench-locomotion  ## every benchmark; figures are ratios measured in one run
 
 bench-sim: setup
 	$(PY) benchmarks/sim_bench.py
 
 bench-walk: setup
 	$(PY) benchmarks/walk_bench.py
+
+bench-locomotion: setup
+	$(PY) benchmarks/locomotion_bench.py
 
 bench-arm: setup
 	$(PY) benchmarks/arm_bench.py

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import enum
 import math
+from typing import NamedTuple
 
 import mujoco
 import numpy as np
@@ -50,7 +51,7 @@ MOTOR_JOINTS = names.LEFT_LEG_JOINTS + names.RIGHT_LEG_JOINTS + names.WAIST_JOIN
 SERVO_JOINTS = names.LEFT_ARM_JOINTS + names.RIGHT_ARM_JOINTS
 
 # Walking posture: a deeper crouch than the stand keyframe gives more reach [rad].
-WALK_CROUCH = {"hip_pitch": -0.4, "knee": 0.8, "ankle_pitch": -0.4}
+WALK_CROUCH = {"hip_pitch": -0.5, "knee": 1.0, "ankle_pitch": -0.5}
 HALF_STEP_WIDTH = 0.1185  # lateral distance from the walking frame to each sole centre [m]
 SHIFT_DURATION = 0.6  # initial weight shift onto the first stance foot [s]
 SETTLE_DURATION = 0.6  # final shift of the ZMP to the midpoint between the feet [s]
@@ -58,12 +59,14 @@ HORIZON = 2.0  # DCM preview horizon [s]
 DCM_GAIN = 6.0  # DCM tracking gain k [1/s]
 HEIGHT_KP, HEIGHT_KD = 100.0, 20.0
 LINE_KEEPING = 0.3  # fraction of the lateral path error removed per step
+LINE_STEP_GAIN = 0.1  # extra sideways landing offset per m of lateral path error (see _adjusted_landing)
+LINE_STEP_LIMIT = 0.04  # [m]
 SPEED_INTEGRAL_GAIN = 0.5
 SPEED_INTEGRAL_LIMIT = 0.05  # [m]
 STEP_ADJUST_DEADBAND = 0.01  # [m]
 SWING_FREEZE = 0.75  # fraction of the swing after which its target no longer changes
 LOAD_RAMP = 0.03  # time for a touching-down foot to take full load [s]
-REACH_X = (-0.20, 0.35)  # swing sole x relative to the stance sole, stance frame [m]
+REACH_X = (-0.20, 0.45)  # swing sole x relative to the stance sole, stance frame [m]
 REACH_LATERAL = (0.15, 0.40)  # outward distance between sole centres [m]
 SUPPORT_MARGIN = 0.01  # the desired CoP stays this far inside the sole [m]
 FALL_HEIGHT = G1_WALKING.fall_height_m  # pelvis height below which the robot has fallen [m] (the robot's spec)
@@ -76,6 +79,14 @@ Velocity = tuple[float, float, float]  # (vx [m/s], vy [m/s], wz [rad/s]) in the
 PlannedStep = tuple[Footstep, bool, Point, float]  # landing, closing step?, walking frame after it ([m], [rad])
 _ZERO: Velocity = (0.0, 0.0, 0.0)
 _CORNER_SIGNS = ((1, 1), (-1, 1), (-1, -1), (1, -1))  # counter-clockwise around the sole
+
+
+class GaitPhase(NamedTuple):
+    """Where the gait is: the phase's kind, the time spent in it and its planned duration [s]."""
+
+    kind: str
+    elapsed: float
+    duration: float
 
 
 class _Phase(enum.Enum):
@@ -145,6 +156,7 @@ class WalkingController:
         self._data: mujoco.MjData | None = None
         self._target: Velocity = _ZERO
         self._stop_point: Point | None = None
+        self._stop_heading: float | None = None
         self._init_state()
 
     # ----- public API -------------------------------------------------------------------
@@ -201,6 +213,40 @@ class WalkingController:
         then commands zero (:meth:`stop_point_remaining` says how far the planned frame still is).
         """
         self._stop_point = None if point is None else (float(point[0]), float(point[1]))
+
+    def set_stop_heading(self, heading: float | None) -> None:
+        """Turn no farther than ``heading`` (world yaw [rad]); None lifts the limit.
+
+        Turning steps are shortened so that the walking frame's heading lands on it: a turn in place
+        commands a yaw rate until :meth:`stop_heading_remaining` is zero, then zero. The heading is
+        not wrapped: it is compared with the walking frame's heading, which starts at the measured
+        yaw (in [-pi, pi]) when a walk starts and then accumulates the planned turns (so yaw0 + pi
+        is half a turn to the left and yaw0 - pi half a turn to the right).
+
+        Raises:
+            InvalidGoalError: the heading is not finite.
+        """
+        if heading is not None and not math.isfinite(heading):
+            raise InvalidGoalError(f"stop heading {heading!r} must be a finite number")
+        self._stop_heading = None if heading is None else float(heading)
+
+    def stop_heading_remaining(self) -> float:
+        """Signed turn [rad] from the planned walking frame's heading to the stop heading (0 without one)."""
+        if self._stop_heading is None:
+            return 0.0
+        return self._stop_heading - self._frame_yaw
+
+    def stop_point_reached(self, tolerance: float = 0.005) -> bool:
+        """True when the planned walking frame stands within ``tolerance`` [m] of the stop point (or there is none)."""
+        if self._stop_point is None:
+            return True
+        pos = self._frame_pos
+        return math.hypot(self._stop_point[0] - pos[0], self._stop_point[1] - pos[1]) <= tolerance
+
+    def gait_phase(self) -> GaitPhase:
+        """The phase of the gait: its kind (idle, shift, single, double, settle, balance, fallen), the
+        time spent in it and its planned duration [s]."""
+        return GaitPhase(self._phase.value, self._phase_time, self._phase_duration)
 
     def feet_midpoint(self, data: mujoco.MjData) -> Point:
         """The measured midpoint between the sole centres, world (x, y) [m]: where the walking frame stands."""
@@ -260,6 +306,7 @@ class WalkingController:
         self._data = data
         self._target = _ZERO
         self._stop_point = None
+        self._stop_heading = None
         self._wbc.reset()
         self._init_state()
 
@@ -288,6 +335,7 @@ class WalkingController:
         if self._phase is _Phase.IDLE:
             self._start_torque_control(model, data)
         self._filter_command(control_dt)
+        self._timing = self._params.timing(self._velocity[0])
         self._stopping = self._target == _ZERO and self._velocity == _ZERO
         self._measure(data, control_dt)
         feet = self._feet(data)
@@ -305,6 +353,7 @@ class WalkingController:
         self._phase_time = 0.0
         self._phase_duration = 0.0
         self._velocity = _ZERO
+        self._timing = self._params.timing(0.0)  # (single, double support) durations at the current speed [s]
         self._stopping = False
         self._measured = _ZERO
         self._steps = 0
@@ -313,6 +362,9 @@ class WalkingController:
         self._frame_pos: Point = (0.0, 0.0)  # planned walking frame (midpoint between the feet) [m]
         self._frame_yaw = 0.0
         self._step_frame_pos: Point = (0.0, 0.0)
+        self._line_pos: Point = (0.0, 0.0)  # a point of the path line the walk keeps to [m]
+        self._line_yaw = 0.0  # its heading [rad]
+        self._line_error = 0.0  # lateral distance of the measured walking frame from the line at lift-off [m]
         self._step_frame_yaw = 0.0
         self._swing_start = (0.0, 0.0, 0.0)  # sole position at lift-off [m]
         self._swing_start_yaw = 0.0
@@ -437,6 +489,7 @@ class WalkingController:
                 self._zmp_start = _midpoint((left.x, left.y), (right.x, right.y))
                 self._frame_yaw = _mid_angle(left.yaw, right.yaw)
                 self._frame_pos = self._zmp_start
+                self._line_pos, self._line_yaw = self._frame_pos, self._frame_yaw
                 self._speed_correction = 0.0
                 self._still_time = 0.0
                 self._enter(_Phase.SHIFT, SHIFT_DURATION)
@@ -486,22 +539,34 @@ class WalkingController:
         self._swing_start_yaw = feet[swing.index].yaw
         # Walking frame at the start of this step: measured from the stance sole, with the lateral
         # error against the planned path partly removed (line keeping) and the planned heading.
+        # The path line is anchored where the walk started and moved only by the commanded steps
+        # (sideways steps, turns), so a lateral bias per step cannot accumulate into a drift.
         stance = feet[self._stance.index]
         mx, my = _frame_of(stance)
-        fx, fy = self._frame_pos
-        forward, lateral = unrotate(self._frame_yaw, mx - fx, my - fy)
-        dx, dy = rotate(self._frame_yaw, forward, lateral * (1.0 - LINE_KEEPING))
-        self._step_frame_pos = (fx + dx, fy + dy)
+        lx, ly = self._line_pos
+        forward, lateral = unrotate(self._line_yaw, mx - lx, my - ly)
+        dx, dy = rotate(self._line_yaw, forward, 0.0)
+        lx, ly = self._line_pos = (lx + dx, ly + dy)  # the foot of the perpendicular from the measured frame
+        self._line_error = lateral
+        dx, dy = rotate(self._line_yaw, 0.0, lateral * (1.0 - LINE_KEEPING))
+        self._step_frame_pos = (lx + dx, ly + dy)
         self._step_frame_yaw = self._frame_yaw
         self._swing_target, self._swing_closing = self._next_footstep(
             self._step_frame_pos, self._step_frame_yaw, swing, stance
         )
         self._swing_landing = None
-        self._enter(_Phase.SINGLE, self._params.step_duration)
+        self._enter(_Phase.SINGLE, self._timing[0])
 
     def _touchdown(self, data: mujoco.MjData, feet: tuple[Footstep, Footstep]) -> None:
         target = self._swing_target
         self._steps += 1
+        # The path line moves by the step's commanded sideways step and turn.
+        velocity = _ZERO if self._stopping else self._velocity
+        moved, turned = self._advance_frame(self._step_frame_pos, self._step_frame_yaw, target.side, velocity)
+        _, sideways = unrotate(self._step_frame_yaw, moved[0] - self._step_frame_pos[0], moved[1] - self._step_frame_pos[1])
+        dx, dy = rotate(self._line_yaw, 0.0, sideways)
+        self._line_pos = (self._line_pos[0] + dx, self._line_pos[1] + dy)
+        self._line_yaw = turned
         self._frame_yaw = target.yaw
         self._frame_pos = _frame_of(target)
         self._landed_closing = self._swing_closing
@@ -512,7 +577,8 @@ class WalkingController:
         if elapsed > 0 and not self._stopping and self._velocity[0] != 0.0:
             advance, _ = unrotate(self._frame_yaw, com[0] - self._touchdown_com[0], com[1] - self._touchdown_com[1])
             speed = advance / elapsed
-            correction = self._speed_correction + SPEED_INTEGRAL_GAIN * (self._velocity[0] - speed) * self._params.step_period
+            period = self._timing[0] + self._timing[1]
+            correction = self._speed_correction + SPEED_INTEGRAL_GAIN * (self._velocity[0] - speed) * period
             self._speed_correction = min(max(correction, -SPEED_INTEGRAL_LIMIT), SPEED_INTEGRAL_LIMIT)
         elif self._velocity[0] == 0.0:
             self._speed_correction = 0.0
@@ -521,20 +587,26 @@ class WalkingController:
         stance = feet[self._stance.index]
         self._zmp_start = (stance.x, stance.y)
         self._stance = target.side
-        self._enter(_Phase.DOUBLE, self._params.double_support_duration)
+        self._enter(_Phase.DOUBLE, self._timing[1])
 
     # ----- footsteps ----------------------------------------------------------------------
     def _advance_frame(self, frame_pos: Point, frame_yaw: float, swing: Side, velocity: Velocity) -> tuple[Point, float]:
         """The walking frame one step later [m, rad]."""
-        period = self._params.step_period
+        period = self._timing[0] + self._timing[1]
         turn = velocity[2] * period
         forward = velocity[0] * period + (self._speed_correction if velocity[0] != 0.0 else 0.0)
-        stop = self._stop_point
-        if stop is not None and forward != 0.0:
-            # Never plan the walking frame past the stop point (along its heading).
-            ahead, _ = unrotate(frame_yaw, stop[0] - frame_pos[0], stop[1] - frame_pos[1])
-            forward = min(forward, max(ahead, 0.0)) if forward > 0.0 else max(forward, min(ahead, 0.0))
         lateral = 2.0 * velocity[1] * period if velocity[1] * swing.sign > 0 else 0.0
+        stop = self._stop_point
+        if stop is not None and (forward != 0.0 or lateral != 0.0):
+            # Never plan the walking frame past the stop point (along its heading, nor sideways).
+            ahead, left = unrotate(frame_yaw, stop[0] - frame_pos[0], stop[1] - frame_pos[1])
+            forward = min(forward, max(ahead, 0.0)) if forward > 0.0 else max(forward, min(ahead, 0.0))
+            lateral = min(lateral, max(left, 0.0)) if lateral > 0.0 else max(lateral, min(left, 0.0))
+        heading = self._stop_heading
+        if heading is not None and turn != 0.0:
+            # Never plan the walking frame's heading past the stop heading.
+            remaining = heading - frame_yaw
+            turn = min(turn, max(remaining, 0.0)) if turn > 0.0 else max(turn, min(remaining, 0.0))
         dx, dy = rotate(frame_yaw + 0.5 * turn, forward, lateral)
         return (frame_pos[0] + dx, frame_pos[1] + dy), frame_yaw + turn
 
@@ -573,7 +645,7 @@ class WalkingController:
         at a steady command means for a whole gait phase.
         """
         key = (frame_pos, frame_yaw, support, self._stopping, self._velocity, self._speed_correction,
-               self._params.step_period, self._stop_point)
+               self._timing, self._stop_point)
         if key != self._plan_key:
             self._plan_key = key
             self._plan_base = (support, False, frame_pos, frame_yaw)
@@ -591,8 +663,7 @@ class WalkingController:
         """Refill :attr:`_preview` with the ZMP reference from now to the horizon (or to standing)."""
         preview = self._preview
         preview.clear()
-        p = self._params
-        t_ss, t_ds = p.step_duration, p.double_support_duration
+        t_ss, t_ds = self._timing
         stance = feet[self._stance.index]
         here = (stance.x, stance.y)
         phase = self._phase
@@ -680,10 +751,16 @@ class WalkingController:
         offset_x = cop[0] + growth * (dcm[0] - cop[0]) - planned_dcm[0]
         offset_y = cop[1] + growth * (dcm[1] - cop[1]) - planned_dcm[1]
         size = math.sqrt(offset_x * offset_x + offset_y * offset_y)
-        if size <= STEP_ADJUST_DEADBAND:
+        scale = max(size - STEP_ADJUST_DEADBAND, 0.0) / max(size, 1e-9)
+        # Landing exactly at the predicted DCM error leaves a sideways error as it is (the DCM walks
+        # on, parallel to the path). Landing a little farther out on the side of the error moves
+        # the DCM back toward the path line over the next steps.
+        away = min(max(LINE_STEP_GAIN * self._line_error, -LINE_STEP_LIMIT), LINE_STEP_LIMIT)
+        away_x, away_y = rotate(self._line_yaw, 0.0, away)
+        if scale == 0.0 and away == 0.0:
             return target
-        scale = (size - STEP_ADJUST_DEADBAND) / size
-        x, y = self._clip_reach(target.x + offset_x * scale, target.y + offset_y * scale, target.side, stance)
+        x, y = self._clip_reach(target.x + offset_x * scale + away_x, target.y + offset_y * scale + away_y,
+                                target.side, stance)
         return Footstep(target.side, x, y, target.yaw)
 
     # ----- tasks ------------------------------------------------------------------------

@@ -108,6 +108,18 @@ def test_velocity_command_is_clamped_and_non_finite_values_are_refused(g1_robot)
         controller.set_velocity_command(float("inf"), 0.0, 0.0)
 
 
+def test_cadence_follows_speed_above_0_6_m_s():
+    params = GaitParameters()
+    assert params.timing(0.5) == pytest.approx((0.35, 0.10))
+    assert params.timing(-0.6) == pytest.approx((0.35, 0.10))
+    assert params.timing(0.8) == pytest.approx((0.30, 0.08))
+    assert params.timing(1.0) == pytest.approx((0.30, 0.08))
+    swing, double = params.timing(0.7)
+    assert 0.30 < swing < 0.35 and 0.08 < double < 0.10
+    assert GaitParameters(step_duration=0.40).timing(0.8)[0] == pytest.approx(0.40 * 0.30 / 0.35)
+    assert params.speed_limits[0] == pytest.approx(0.8)
+
+
 def test_dcm_reference_is_the_zmp_when_it_stays_put_and_leads_a_moving_zmp():
     still = dcm_reference([ZmpSegment(1.0, np.array([0.1, 0.2]), np.array([0.1, 0.2]))], 0.3, 3.8)
     assert still.dcm == pytest.approx([0.1, 0.2])
@@ -155,6 +167,21 @@ def test_walks_forward_two_metres_at_the_commanded_pace(walker):
     assert abs(travelled[1]) < 0.10
     assert abs(math.degrees(_yaw(sim))) < 5.0
     assert controller.status().steps_taken >= 10
+
+
+@pytest.mark.slow
+def test_walks_at_0_8_m_s_on_its_line(walker):
+    sim, controller = walker
+    start = _xy(sim)
+    controller.set_velocity_command(0.8, 0.0, 0.0)
+    _run_until(sim, controller, lambda: _xy(sim)[0] - start[0] >= 3.0, deadline=8.0)
+    window_start, t0 = _xy(sim), sim.time
+    _run_until(sim, controller, lambda: _xy(sim)[0] - start[0] >= 12.0, deadline=15.0)
+    pace = (_xy(sim)[0] - window_start[0]) / (sim.time - t0)
+    assert pace == pytest.approx(0.8, rel=0.03)
+    travelled = _xy(sim) - start
+    assert abs(travelled[1]) / travelled[0] < 0.02  # lateral drift per metre
+    _stop_and_settle(sim, controller)
 
 
 @pytest.mark.slow

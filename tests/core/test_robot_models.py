@@ -109,7 +109,7 @@ def test_g1_course_scene_has_static_obstacles_and_unknown_scenes_are_refused():
 def test_skill_limits_live_on_the_spec():
     g1, panda = robot_models.load("g1"), robot_models.load("panda")
     assert g1.walking is not None and panda.walking is None, "only the legged robot walks"
-    assert g1.walking.speed_range_mps == (0.05, 0.6)
+    assert g1.walking.speed_range_mps == (0.05, 0.8)
     assert g1.walking.speed_range_mps[0] <= g1.walking.default_speed_mps <= g1.walking.speed_range_mps[1]
     assert g1.walking.max_walk_distance_m == 100.0
     assert g1.walking.fall_height_m == 0.45
