@@ -77,13 +77,27 @@ def params_file_error(error: Exception) -> StartupError:
     return StartupError(f"cannot read the ROS arguments: {(cause.group(1) if cause else text).strip()}")
 
 
-def init_ros(argv: Sequence[str]) -> None:
-    """``rclpy.init`` that turns unreadable ROS arguments (a bad params file) into a :class:`StartupError`."""
+def init_ros(argv: Sequence[str], own_signals: bool = False) -> None:
+    """``rclpy.init`` that turns unreadable ROS arguments (a bad params file) into a :class:`StartupError`.
+
+    Args:
+        own_signals: leave SIGINT and SIGTERM to the node (both raise KeyboardInterrupt in the main
+            thread) instead of rclpy's handlers, which shut the ROS context down at once: a server
+            that must still answer its clients on the way out needs the context alive.
+    """
+    import signal
+
     import rclpy
     from rclpy._rclpy_pybind11 import RCLError
+    from rclpy.signals import SignalHandlerOptions
 
+    options = SignalHandlerOptions.ALL
+    if own_signals:
+        options = SignalHandlerOptions.NO
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGTERM, signal.default_int_handler)
     try:
-        rclpy.init(args=list(argv))
+        rclpy.init(args=list(argv), signal_handler_options=options)
     except RCLError as error:
         raise params_file_error(error) from None
 

@@ -173,7 +173,7 @@ def spin_server(node_factory: Callable[[str, list[Parameter]], Node], node_name:
                          f"`ros2 param describe /{node_name} NAME` shows its parameters.\n")
         return 0
     try:
-        init_ros(argv)
+        init_ros(argv, own_signals=True)
     except StartupError as error:
         return fail(program, error)
     try:
@@ -186,8 +186,34 @@ def spin_server(node_factory: Callable[[str, list[Parameter]], Node], node_name:
         rclpy.try_shutdown()
 
 
-def _serve(node_factory: Callable[[str, list[Parameter]], Node], node_name: str, argv: list[str]) -> int:
+GOODBYE_WALL_S = 2.0  # [s] a stopping server spends at most this long getting its goals' results out
+RESULT_GRACE_S = 0.2  # [s] after its goals' callbacks returned, for the result responses to go out
+
+
+def _end_goals_before_exit(node: Node) -> None:
+    """End the running goals ABORTED "server shutting down"; the executor (still spinning) sends their results."""
+    from nodes.skill_server import end_goals_of, goals_pending
+
+    if not rclpy.ok():
+        return
+    ended = end_goals_of(node, f"server shutting down: /{node.get_name()} was stopped while the goal ran")
+    if not ended:
+        return
+    node.get_logger().warning(f"stopping: ended {ended} running goal(s) ABORTED (server shutting down)")
+    deadline = time.monotonic() + GOODBYE_WALL_S
+    while goals_pending(node) and time.monotonic() < deadline:
+        time.sleep(0.01)  # the executor's threads finish the goals' execute callbacks
+    time.sleep(RESULT_GRACE_S)  # and answer the result requests those callbacks' returns release
+
+
+def _spin(executor: Any) -> None:
     from rclpy.executors import ExternalShutdownException
+
+    with contextlib.suppress(ExternalShutdownException):
+        executor.spin()
+
+
+def _serve(node_factory: Callable[[str, list[Parameter]], Node], node_name: str, argv: list[str]) -> int:
 
     import robot_models
     from nodes.cli import StartupError
@@ -213,13 +239,21 @@ def _serve(node_factory: Callable[[str, list[Parameter]], Node], node_name: str,
     guard_parameter_services(node)
     executor = ServerExecutor(num_threads=4)
     executor.add_node(node)
+    # The executor spins in a thread of its own; the main thread waits for SIGINT/SIGTERM (both raise
+    # KeyboardInterrupt here, see init_ros), so the executor still serves while the goals are ended.
+    spinner = threading.Thread(target=_spin, args=(executor,), name="executor", daemon=True)
+    spinner.start()
     try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
+        while spinner.is_alive():
+            spinner.join(0.2)
+    except KeyboardInterrupt:
         pass
     finally:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not interrupt the clean-up
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, signal.SIG_IGN)  # a second signal must not interrupt the clean-up
+        _end_goals_before_exit(node)
+        executor.shutdown(timeout_sec=5.0)  # the spinning thread returns; then nothing uses the node
+        spinner.join(5.0)
         node.destroy_node()
-        executor.shutdown()
         rclpy.try_shutdown()
     return 0

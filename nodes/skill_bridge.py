@@ -2,7 +2,9 @@
 
 Commands are applied under the simulation lock between two stretches of stepping, at the sim time
 at which they arrive (while paused, at the paused instant). A goal's state is published at once when
-it starts, ends or is asked to cancel, and at ``state_rate`` while anyone listens.
+it starts, ends or is asked to cancel, and at ``state_rate`` while anyone listens. Besides, every
+running goal's state goes out at least every :data:`HEARTBEAT_PERIOD_S` of wall time, paused or not:
+a server that hears nothing for much longer knows /sim has stopped or died.
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ import collections
 import threading
 
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rclpy.serialization import deserialize_message, serialize_message
@@ -24,6 +27,7 @@ from sim_bridge.skills.host import refused_run
 from sim_interfaces.msg import SkillCommand, SkillState
 
 QOS = QoSProfile(depth=100)
+HEARTBEAT_PERIOD_S = 0.25  # [s of wall time] the longest a running goal's state goes unpublished
 SEEN_COMMANDS = 256  # recent (resource, goal_seq) starts remembered, so a re-sent START is applied once
 
 
@@ -50,6 +54,8 @@ class SkillBridge:
         self._pub = node.create_publisher(SkillState, SKILL_STATE_TOPIC, QOS)
         node.create_subscription(SkillCommand, SKILL_COMMAND_TOPIC, self._on_command, QOS,
                                  callback_group=ReentrantCallbackGroup())
+        node.create_timer(HEARTBEAT_PERIOD_S, self._heartbeat, callback_group=ReentrantCallbackGroup(),
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     @property
     def resources(self) -> tuple[str, ...]:
@@ -132,6 +138,13 @@ class SkillBridge:
             for run in host.runs():
                 if run.status is SkillStatus.RUNNING:
                     self._pub.publish(self._state(run))
+
+    def _heartbeat(self) -> None:
+        """Wall-clock: the state of every running goal (the same sim stamp while paused: no feedback is due)."""
+        if not any(host.runs() for host in set(self._hosts.values())):
+            return
+        with self._lock:
+            self.publish_all()
 
     def _state(self, run: SkillRun) -> SkillState:
         now = self._sim.time

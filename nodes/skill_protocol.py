@@ -25,7 +25,7 @@ from nodes.conversions import duration_msg, set_pose, set_time, yaw_of
 from robot_models import RobotSpec, WalkingLimits
 from sim_bridge import Simulation
 from sim_bridge.arm import PickPlaceGoal
-from sim_bridge.arm.pick_place import place_problem
+from sim_bridge.arm.pick_place import min_grip_force_n, place_problem
 from sim_bridge.battery import Battery
 from sim_bridge.errors import InvalidGoalError
 from sim_bridge.frames import check_frame, is_world, to_world
@@ -211,6 +211,13 @@ def _validate_pick(goal: PickPlace.Goal, robot: RobotSpec) -> str:
         if not all(math.isfinite(v) for v in (p.x, p.y, p.z)):
             raise InvalidGoalError("give object_id, or a finite pick_pose")
         check_frame(goal.pick_pose.header.frame_id, robot, "pick_pose")
+    if goal.grasp_force > 0.0:  # 0 = the parameter's default
+        candidates = [goal.object_id] if goal.object_id else list(robot.objects)
+        needed = max(min_grip_force_n(robot.model, name) for name in candidates)
+        if goal.grasp_force < needed:
+            raise InvalidGoalError(f"grasp_force {goal.grasp_force:g} N per finger cannot hold "
+                                   f"{goal.object_id or 'the objects'}: at least {needed:.2f} N "
+                                   f"(up to {robot.grasp.max_force_n:g} N; 0 = the default)")
     check_frame(goal.place_pose.header.frame_id, robot, "place_pose")
     p = goal.place_pose.pose.position
     if not all(math.isfinite(v) for v in (p.x, p.y, p.z)):

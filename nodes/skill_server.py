@@ -15,6 +15,7 @@ import os
 import threading
 import time
 import traceback
+import weakref
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
@@ -38,6 +39,9 @@ ACK_TIMEOUT_S = 10.0  # wall seconds for /sim to report a goal it was sent
 CANCEL_ACK_S = 2.0  # wall seconds a cancel request waits for /sim to report it has taken the cancel
 SIM_MATCH_S = 10.0  # wall seconds a server waits at start-up for /sim's goal topics to match
 RESEND_PERIOD_S = 0.1  # a START not yet reported is sent again (a message sent before discovery is lost)
+# /sim publishes each running goal's state at least every 0.25 s of wall time, paused or not
+# (nodes.skill_bridge.HEARTBEAT_PERIOD_S): this long without a word, it has stopped or died.
+SIM_SILENCE_S = 1.5
 _TERMINAL = frozenset((SkillState.SUCCEEDED, SkillState.ABORTED, SkillState.CANCELED))
 _seq = itertools.count(1 + (os.getpid() % 4096) * 1_000_000)  # unique per process; /sim echoes it
 _seq_lock = threading.Lock()
@@ -59,6 +63,7 @@ class _Goal:
     done: Future = field(default_factory=Future)
     sent_at: float = field(default_factory=time.monotonic)
     acked: bool = False
+    last_heard: float = field(default_factory=time.monotonic)  # [s, monotonic] of the latest state from /sim
     last_feedback: float = float("-inf")
     milestone: int = -1
     cancel_seen: threading.Event = field(default_factory=threading.Event)
@@ -92,7 +97,7 @@ class SkillActionServer:
         self.server = ActionServer(
             node, binding.action_type, action_name, execute_callback=self._execute, goal_callback=self._accept,
             handle_accepted_callback=lambda handle: handle.execute(), cancel_callback=self._cancel, callback_group=group)
-        # Runs only while a START is unanswered (an idle server has no timer firing).
+        # Runs only while goals run (an idle server has no timer firing).
         self._watchdog_timer = node.create_timer(RESEND_PERIOD_S, self._watchdog, callback_group=group,
                                                  clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._watchdog_timer.cancel()
@@ -163,6 +168,7 @@ class SkillActionServer:
         if goal is None or goal.done.done():
             return
         goal.acked = True
+        goal.last_heard = time.monotonic()
         if state.cancel_requested or state.status != SkillState.RUNNING:
             goal.cancel_seen.set()
         action = self.binding.action_type
@@ -206,26 +212,53 @@ class SkillActionServer:
         goal.done.set_result(result)
 
     def _watchdog(self) -> None:
-        """Re-send unanswered STARTs; end goals /sim never answered (it is not running, or not this robot)."""
+        """While goals run: re-send unanswered STARTs; end goals /sim never answered or stopped answering."""
         now = time.monotonic()
         with self._lock:
-            waiting = [goal for goal in self._goals.values() if not goal.acked and not goal.done.done()]
-            if not waiting:
+            pending = [goal for goal in self._goals.values() if not goal.done.done()]
+            if not pending:
                 self._watchdog_timer.cancel()
-        for goal in waiting:
-            if now - goal.sent_at > ACK_TIMEOUT_S:
-                result = self.binding.action_type.Result()
-                result.error_code = self.binding.action_type.Result.SIM_FAULT
+        action = self.binding.action_type
+        for goal in pending:
+            if goal.acked:
+                if now - goal.last_heard > SIM_SILENCE_S:
+                    result = action.Result()
+                    result.error_code = action.Result.SIM_FAULT
+                    result.error_msg = (f"/sim stopped answering: no state of this goal on {SKILL_STATE_TOPIC} for "
+                                        f"{now - goal.last_heard:.1f} s of wall time (it reports running goals every "
+                                        "0.25 s, paused or not); the sim node has stopped or died")
+                    self._end(goal, SkillState.ABORTED, result)
+            elif now - goal.sent_at > ACK_TIMEOUT_S:
+                result = action.Result()
+                result.error_code = action.Result.SIM_FAULT
                 result.error_msg = (f"no answer from /sim on {SKILL_STATE_TOPIC} within {ACK_TIMEOUT_S:g} s: "
                                     f"is /sim running with the {self._robot.name}?")
                 self._end(goal, SkillState.ABORTED, result)
             else:
                 self._send(goal.command)
 
+    def end_all(self, reason: str) -> int:
+        """End every running goal ABORTED with SIM_FAULT and ``reason`` (the server is going away). Returns how many."""
+        ended = 0
+        for goal in list(self._running()):
+            result = self.binding.action_type.Result()
+            result.error_code = self.binding.action_type.Result.SIM_FAULT
+            result.error_msg = reason
+            self._send(SkillCommand(request=SkillCommand.CANCEL, skill=self.binding.name, resource=goal.resource,
+                                    goal_seq=goal.seq))
+            self._end(goal, SkillState.ABORTED, result)
+            ended += 1
+        return ended
+
     # ----- helpers -----------------------------------------------------------------------------
     def _send(self, command: SkillCommand) -> None:
         command.header.stamp = self._node.get_clock().now().to_msg()
         self._commands.publish(command)
+
+    def pending(self) -> bool:
+        """Whether a goal is registered whose execute callback has not returned (its result not sent)."""
+        with self._lock:
+            return bool(self._goals)
 
     def _running(self) -> Iterator[_Goal]:
         with self._lock:
@@ -237,6 +270,19 @@ class SkillActionServer:
             if goal.handle is handle:
                 return goal
         return None
+
+
+_SERVERS: weakref.WeakKeyDictionary[Node, list[SkillActionServer]] = weakref.WeakKeyDictionary()
+
+
+def end_goals_of(node: Node, reason: str) -> int:
+    """End every running goal of ``node``'s skill servers ABORTED with ``reason`` (the node is going away)."""
+    return sum(server.end_all(reason) for server in _SERVERS.get(node, []))
+
+
+def goals_pending(node: Node) -> bool:
+    """Whether any skill server of ``node`` still has a goal whose result has not gone out."""
+    return any(server.pending() for server in _SERVERS.get(node, []))
 
 
 def skill_servers(node: Node, robot: RobotSpec, actions: dict[str, str], settings: Callable[[], dict[str, float]],
@@ -271,4 +317,5 @@ def skill_servers(node: Node, robot: RobotSpec, actions: dict[str, str], setting
                                   "serving anyway (goals are sent again until /sim answers)")
     for skill, action_name in actions.items():
         servers[skill] = SkillActionServer(node, BINDINGS[skill], action_name, robot, settings, feedback_period, commands)
+    _SERVERS.setdefault(node, []).extend(servers.values())
     return servers

@@ -22,6 +22,13 @@ _BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
 MAX_PUSH_FORCE_N = 5000.0
 MAX_PUSH_TORQUE_NM = 1000.0
 MAX_PUSH_DURATION_S = 10.0
+# A push is bounded by the mass it moves (the body's whole tree: a link pushes its robot): at most
+# PUSH_MAX_ACCELERATION_G times gravity, and an impulse that changes the tree's velocity by at most
+# PUSH_MAX_DELTA_V_MPS. A shove that fells a humanoid passes (the G1: up to 3.3 kN, 233 N s); a
+# 50 g box gets at most 4.9 N and 0.35 N s (a toss of ~2.5 m at most), not a launch into the sky.
+PUSH_MAX_ACCELERATION_G = 10.0
+PUSH_MAX_DELTA_V_MPS = 7.0
+PUSH_LEVER_ARM_M = 0.3  # torque bound = force bound x this arm
 
 
 @dataclass
@@ -201,12 +208,22 @@ class Simulation:
         torque = np.asarray(torque_nm, dtype=float).reshape(3)
         if not (np.all(np.isfinite(force)) and np.all(np.isfinite(torque)) and math.isfinite(duration_s)):
             raise ValueError("force, torque and duration must be finite numbers")
-        if np.linalg.norm(force) > MAX_PUSH_FORCE_N:
-            raise ValueError(f"force {np.linalg.norm(force):.1f} N is too large; allowed: up to {MAX_PUSH_FORCE_N:.0f} N")
-        if np.linalg.norm(torque) > MAX_PUSH_TORQUE_NM:
-            raise ValueError(f"torque {np.linalg.norm(torque):.1f} N m is too large; allowed: up to {MAX_PUSH_TORQUE_NM:.0f} N m")
         if not 0.0 < duration_s <= MAX_PUSH_DURATION_S:
             raise ValueError(f"duration must be in (0, {MAX_PUSH_DURATION_S:g}] s of sim time, got {duration_s}")
+        mass = float(self.model.body_subtreemass[self.model.body_rootid[body_id]])
+        gravity = float(np.linalg.norm(self.model.opt.gravity)) or 9.81
+        max_force = min(MAX_PUSH_FORCE_N, PUSH_MAX_ACCELERATION_G * gravity * mass)
+        max_torque = min(MAX_PUSH_TORQUE_NM, max_force * PUSH_LEVER_ARM_M)
+        max_impulse = PUSH_MAX_DELTA_V_MPS * mass
+        what = f"{body!r} (it moves {mass:.3g} kg)"
+        if np.linalg.norm(force) > max_force:
+            raise ValueError(f"force {np.linalg.norm(force):.1f} N is too large for {what}; allowed: up to {max_force:.4g} N")
+        if np.linalg.norm(torque) > max_torque:
+            raise ValueError(f"torque {np.linalg.norm(torque):.1f} N m is too large for {what}; "
+                             f"allowed: up to {max_torque:.4g} N m")
+        if np.linalg.norm(force) * duration_s > max_impulse:
+            raise ValueError(f"impulse {np.linalg.norm(force) * duration_s:.3g} N s (force x duration) is too large for "
+                             f"{what}; allowed: up to {max_impulse:.3g} N s (a change of {PUSH_MAX_DELTA_V_MPS:g} m/s)")
         steps = max(1, round(duration_s / self.physics_timestep))
         push = _Push(body_id, np.concatenate([force, torque]), steps)
         self._pushes.append(push)

@@ -27,8 +27,8 @@ SETUP_SH = """\
 # Source this file (`. {prefix}/setup.sh`) in a shell where a ROS 2 Jazzy ros2cli runs, as you
 # would source a workspace's setup.bash. Written by tools/register_ament.py during the set-up.
 # It puts the package `sim` on the ament path and the project's interface packages
-# ({packages}) on the Python path; their libraries find each other by RUNPATH,
-# and {prefix}/lib is appended to the library path for anything else.
+# ({packages}) on the Python path, and {prefix}/lib on the library path: rosidl opens
+# their type support libraries by searching LD_LIBRARY_PATH (required; a RUNPATH does not help there).
 # The interface modules are built for Python {python}: run ros2cli on that version.
 _sim_prefix="{prefix}"
 export AMENT_PREFIX_PATH="$_sim_prefix${{AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}}"

@@ -168,6 +168,22 @@ def place_problem(scene: ArmScene, position: tuple[float, float, float] | np.nda
     return ""
 
 
+GRIP_SAFETY = 4.0  # a grip must hold this many times the object's weight by friction
+
+
+def min_grip_force_n(model: mujoco.MjModel, object_name: str) -> float:
+    """The weakest squeeze per finger [N] that holds ``object_name`` with :data:`GRIP_SAFETY`.
+
+    Two fingers hold by friction: 2 mu F >= safety m g, with mu the object's sliding friction (MuJoCo
+    takes the larger of the two surfaces', so this is on the safe side).
+    """
+    body = model.body(object_name)
+    geoms = [g for g in range(model.ngeom) if int(model.geom_bodyid[g]) == body.id]
+    mu = max((float(model.geom_friction[g][0]) for g in geoms), default=1.0) or 1.0
+    gravity = float(np.linalg.norm(model.opt.gravity))
+    return GRIP_SAFETY * float(body.mass[0]) * gravity / (2.0 * mu)
+
+
 def _tool_down_quat(yaw: float) -> np.ndarray:
     """Tool z axis pointing down, tool x axis at ``yaw`` [rad] about world z: Rz(yaw) Rx(pi)."""
     return np.array([0.0, math.cos(0.5 * yaw), math.sin(0.5 * yaw), 0.0])

@@ -53,3 +53,12 @@ def test_a_place_must_be_on_the_table_at_a_height_it_can_honour():
     assert "cannot be honoured" in place_problem(scene, (0.4, 0.3, -0.5))
     assert "off the table" in place_problem(scene, (-0.8, 0.0, 0.0))
     assert "finite" in place_problem(scene, (float("nan"), 0.0, 0.0))
+
+
+def test_the_weakest_grip_holds_the_box_four_times_over():
+    from sim_bridge.arm.pick_place import GRIP_SAFETY, min_grip_force_n
+
+    model = robot_models.load("panda").model
+    box = model.body("box_1")
+    needed = min_grip_force_n(model, "box_1")
+    assert 2 * 1.0 * needed == pytest.approx(GRIP_SAFETY * float(box.mass[0]) * 9.81, rel=1e-3)  # friction 1.0

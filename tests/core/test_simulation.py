@@ -187,14 +187,22 @@ def test_a_push_acts_for_exactly_its_duration_and_imparts_its_impulse():
     assert velocity == pytest.approx((force / mass - gravity) * 0.1 - gravity * past, rel=0.02)
 
 
+def test_a_pushs_bound_follows_the_mass_it_moves():
+    g1 = Simulation(robot_models.load("g1"))
+    assert g1.push("pelvis", (0.0, 3000.0, 0.0), (0.0, 0.0, 0.0), 0.05) > 0  # 33 kg: a 3 kN shove is allowed
+    with pytest.raises(ValueError, match=r"impulse .* up to 233 N s"):
+        g1.push("pelvis", (0.0, 1000.0, 0.0), (0.0, 0.0, 0.0), 0.3)
+
+
 def test_bad_pushes_are_refused_and_change_nothing(panda_sim):
     before = panda_sim.data.qpos.copy()
     with pytest.raises(UnknownNameError, match=r"bodies: .*panda_link0"):
         panda_sim.push("no_such_body", (1.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.1)
     for force, torque, duration, reason in [
         ((math.nan, 0.0, 0.0), (0.0, 0.0, 0.0), 0.1, "finite"),
-        ((1e5, 0.0, 0.0), (0.0, 0.0, 0.0), 0.1, "up to 5000 N"),
-        ((0.0, 0.0, 0.0), (0.0, 0.0, 5e3), 0.1, "up to 1000 N m"),
+        ((1e5, 0.0, 0.0), (0.0, 0.0, 0.0), 0.1, r"up to 4.9\d* N"),  # 10 g on the 50 g box
+        ((0.0, 0.0, 0.0), (0.0, 0.0, 5e3), 0.1, r"up to 1.4\d* N m"),
+        ((0.0, 0.0, 4.0), (0.0, 0.0, 0.0), 1.0, r"impulse 4 N s .* up to 0.35 N s"),  # it used to fly 87 km high
         ((1.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0, r"\(0, 10\]"),
     ]:
         with pytest.raises(ValueError, match=reason):
@@ -204,7 +212,7 @@ def test_bad_pushes_are_refused_and_change_nothing(panda_sim):
 
 
 def test_reset_ends_a_push(panda_sim):
-    panda_sim.push(panda_sim.robot.objects[0], (0.0, 0.0, 5.0), (0.0, 0.0, 0.0), 1.0)
+    panda_sim.push(panda_sim.robot.objects[0], (0.0, 0.0, 0.8), (0.0, 0.0, 0.0), 0.2)
     panda_sim.step(1)
     panda_sim.reset()
     assert not panda_sim.pushing and not np.any(panda_sim.data.xfrc_applied)

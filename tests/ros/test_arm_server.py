@@ -219,3 +219,10 @@ def test_a_place_the_arm_cannot_honour_is_rejected_at_once(client, pick_place, f
     goal.place_pose.pose.position.x, goal.place_pose.pose.position.y, goal.place_pose.pose.position.z = xyz
     assert not send(client, pick_place, goal).handle.accepted
     assert pick_place.server_is_ready()
+
+
+def test_a_grip_too_weak_to_hold_the_box_is_rejected(client, pick_place):
+    goal = PickPlace.Goal(object_id="box_1", grasp_force=0.001)
+    goal.place_pose.pose.position.x, goal.place_pose.pose.position.y = 0.4, 0.3
+    assert not send(client, pick_place, goal).handle.accepted
+    assert pick_place.server_is_ready()
