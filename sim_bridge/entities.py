@@ -188,11 +188,16 @@ class SceneEntities:
             mujoco.mju_mat2Quat(quat, data.geom_xmat[handle.geom_id])
             return EntityState(Pose(data.geom_xpos[handle.geom_id].copy(), quat), zero, zero.copy(), zero.copy(), zero.copy())
         body = handle.body_id
-        pose = Pose(data.xpos[body].copy(), data.xquat[body].copy())
-        if handle.qpos_adr < 0:
-            return EntityState(pose, zero, zero.copy(), zero.copy(), zero.copy())
-        # A free joint: translational dofs in world axes, rotational dofs in the body's axes.
-        rotation = data.xmat[body].reshape(3, 3)
+        if handle.qpos_adr < 0:  # welded: xpos is exact (it does not move)
+            return EntityState(Pose(data.xpos[body].copy(), data.xquat[body].copy()), zero, zero.copy(), zero.copy(),
+                               zero.copy())
+        # A free joint, read from qpos (xpos lags one physics step behind after mj_step): translational
+        # dofs in world axes, rotational dofs in the body's axes.
+        q = data.qpos[handle.qpos_adr : handle.qpos_adr + 7]
+        pose = Pose(q[:3].copy(), q[3:] / np.linalg.norm(q[3:]))
+        flat = np.empty(9)
+        mujoco.mju_quat2Mat(flat, pose.orientation_wxyz)
+        rotation = flat.reshape(3, 3)
         v = data.qvel[handle.dof_adr : handle.dof_adr + 6]
         a = data.qacc[handle.dof_adr : handle.dof_adr + 6]
         return EntityState(pose, v[:3].copy(), rotation @ v[3:], a[:3].copy(), rotation @ a[3:])
