@@ -253,9 +253,13 @@ class SimulationStandard:
         return response
 
     # ----- stepping ----------------------------------------------------------------------
+    def _holding(self) -> bool:
+        """Whether nothing else steps: paused, or the physics thread does not run (an inactive node)."""
+        return self._node.paused or not self._node.physics_running
+
     def _step_refusal(self, steps: int, limit: int) -> Result | None:
         """Why ``steps`` cannot be stepped now (a result to answer), or None."""
-        if not self._node.paused:
+        if not self._holding():
             return _result(Result.RESULT_OPERATION_FAILED,
                            "stepping needs a paused simulation: set STATE_PAUSED with set_simulation_state (or /sim/pause)")
         if not 1 <= steps <= limit:
@@ -267,8 +271,10 @@ class SimulationStandard:
         """Step a paused simulation under the lock; a result when it cannot (resumed meanwhile, a fault)."""
         node = self._node
         with node.lock:
-            if not node.paused:
+            if not self._holding():
                 return _result(Result.RESULT_OPERATION_FAILED, "the simulation was resumed while stepping; stopped there")
+            if not node.context.ok():
+                return _result(Result.RESULT_OPERATION_FAILED, "/sim is shutting down")
             try:
                 node.step_while_paused(steps)
             except SimError as error:

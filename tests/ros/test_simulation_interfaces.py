@@ -258,3 +258,20 @@ def test_set_entity_state_moves_the_g1_base_and_it_stands_there(client):
         wall = call(client, SetEntityState, "set_entity_state", entity="obstacle_wall", state=state, set_pose=True).result
         assert wall.result == Result.RESULT_OPERATION_FAILED and "navigation map" in wall.error_message
         assert process.alive(), process.output()
+
+
+def test_an_inactive_sim_is_paused_steps_and_refuses_to_play(client):
+    from lifecycle_msgs.msg import Transition
+    from lifecycle_msgs.srv import ChangeState
+
+    args = ["sim_node", "--ros-args", "-p", "robot:=panda", "-p", "autostart:=false"]
+    with running(args) as process:
+        configure = ChangeState.Request(transition=Transition(id=Transition.TRANSITION_CONFIGURE))
+        assert client.call(ChangeState, "/sim/change_state", configure, timeout=STARTUP_S).success
+        assert get_state(client) == SimulationState.STATE_PAUSED, "configured, not active: nothing steps the physics"
+        refused = set_state(client, SimulationState.STATE_PLAYING)
+        assert refused.result == SetSimulationState.Response.STATE_TRANSITION_ERROR and "activate" in refused.error_message
+        before = sim_time(client)
+        assert call(client, StepSimulation, "step_simulation", steps=10).result.result == OK
+        assert sim_time(client) - before == pytest.approx(10 * PHYSICS_STEP_S, abs=1e-9)
+        assert process.alive(), process.output()
