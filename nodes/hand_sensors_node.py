@@ -3,9 +3,10 @@
 ``/sim`` publishes each wrist sensor's raw reading (the true wrench plus a seeded offset, a slow drift
 and noise, as a real F/T sensor reads) with how fast the hand moves and whether it touches anything.
 This node publishes ``raw - offset`` as ``geometry_msgs/WrenchStamped`` in the sensor's frame (the
-offset is zero until calibrated). ``/calibrate_hand_sensors`` averages every sensor at rest over a
-window of sim time and keeps that as the offset: afterwards a hand at rest reads ~0, and a load it
-holds reads as its weight. It is refused, with the reason, while a hand moves or touches something.
+offset is zero until calibrated), while anyone subscribes to them. ``/calibrate_hand_sensors``
+averages every sensor at rest over a window of sim time and keeps that as the offset: afterwards a
+hand at rest reads ~0, and a load it holds reads as its weight. It is refused, with the reason, while
+a hand moves or touches something.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from sim_interfaces.msg import HandSensors
 from sim_interfaces.srv import CalibrateHandSensors
 
 NODE_NAME = "hand_sensors"
+WATCH_PERIOD_S = 1.0  # wall seconds between checks whether anyone needs the wrist readings
 NO_DATA_TIMEOUT_S = 10.0  # wall seconds a calibration waits for /sim's readings to cover its window
 
 PARAMETERS = (
@@ -78,14 +80,32 @@ class HandSensorsNode(Node):
         self._calibration: _Calibration | None = None
         self._outputs = {wrist.name: (self.create_publisher(WrenchStamped, f"/{wrist.name}/wrench", 10), WrenchStamped())
                          for wrist in wrists}
-        group = ReentrantCallbackGroup()
-        self.create_subscription(HandSensors, HAND_SENSORS_TOPIC, self._on_readings, QoSProfile(depth=10),
-                                 callback_group=group)
-        self.create_service(CalibrateHandSensors, "/calibrate_hand_sensors", self._on_calibrate, callback_group=group)
+        self._group = ReentrantCallbackGroup()
+        self._readings: Any = None  # the subscription to /sim's raw readings, while anyone needs them
+        self.create_service(CalibrateHandSensors, "/calibrate_hand_sensors", self._on_calibrate, callback_group=self._group)
+        # /sim builds the raw readings only while someone subscribes: subscribe only while our wrenches have a
+        # subscriber or a calibration runs (checked every wall second), so an idle robot costs nothing.
+        self.create_timer(WATCH_PERIOD_S, self._watch_demand, callback_group=self._group,
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(f"serving {', '.join(f'/{n}/wrench' for n in self._names)} and /calibrate_hand_sensors")
 
     def _param(self, name: str) -> float:
         return float(self.get_parameter(name).value)
+
+    def _watch_demand(self) -> None:
+        with self._lock:
+            calibrating = self._calibration is not None and not self._calibration.done.done()
+        wanted = calibrating or any(publisher.get_subscription_count() > 0 for publisher, _ in self._outputs.values())
+        self._subscribe(wanted)
+
+    def _subscribe(self, wanted: bool) -> None:
+        with self._lock:
+            if wanted and self._readings is None:
+                self._readings = self.create_subscription(HandSensors, HAND_SENSORS_TOPIC, self._on_readings,
+                                                          QoSProfile(depth=10), callback_group=self._group)
+            elif not wanted and self._readings is not None:
+                self.destroy_subscription(self._readings)
+                self._readings = None
 
     def _on_readings(self, msg: HandSensors) -> None:
         raw = np.array([_vector(w) for w in msg.wrenches]) if msg.wrenches else np.zeros((0, 6))
@@ -140,6 +160,7 @@ class HandSensorsNode(Node):
                 response.message = "a calibration is already running; try again when it has answered"
                 return response
             self._calibration = calibration
+        self._subscribe(True)
 
         def give_up() -> None:
             self._finish(calibration, f"no readings from /sim on {HAND_SENSORS_TOPIC} covering {window:g} s of sim "

@@ -88,6 +88,8 @@ class SensorStreams:
         specs = RATE_PARAMETERS + (IMU_PARAMETERS if layout.imu is not None else ()) + (WRIST_PARAMETERS if layout.wrists else ())
         declare(node, specs)
         self._names = {spec.name for spec in specs}
+        self._imu_period = self._wrench_period = 0.0
+        self._covariances = (_diagonal(1e-6), _diagonal(1e-8), _diagonal(1e-6))
         self._apply_noise()
         self._next_imu = self._next_wrench = 0.0
         qos = QoSProfile(depth=100)
@@ -116,11 +118,19 @@ class SensorStreams:
 
     # ----- parameters ----------------------------------------------------------------------
     def _apply_noise(self) -> None:
+        """Read the rate and noise parameters into the values the publication stops use (no look-ups there)."""
         value = self._node.get_parameter
+        self._imu_period = 1.0 / float(value("imu_rate").value)
+        self._wrench_period = 1.0 / float(value("wrench_rate").value)
         if self._sim.robot.sensors.imu is not None:
             self.suite.set_imu_noise(ImuNoise(
                 float(value("imu.gyro_noise").value), float(value("imu.accel_noise").value),
                 float(value("imu.gyro_bias").value), float(value("imu.accel_bias").value), int(value("imu.seed").value)))
+            noise = self.suite.imu_noise
+            # Covariances (row-major 3x3, diagonal): the noise as configured, a floor for the true values (0 = unknown).
+            self._covariances = (_diagonal(1e-6),  # orientation: ground truth from the simulation
+                                 _diagonal(max(noise.gyro_noise ** 2 + noise.gyro_bias ** 2, 1e-8)),
+                                 _diagonal(max(noise.accel_noise ** 2 + noise.accel_bias ** 2, 1e-6)))
         if self._sim.robot.sensors.wrists:
             self.suite.set_wrist_noise(WristNoise(
                 float(value("wrist_ft.force_bias").value), float(value("wrist_ft.torque_bias").value),
@@ -129,22 +139,19 @@ class SensorStreams:
 
     def on_parameters(self, parameters: list[Parameter]) -> None:
         """Under the lock, after parameters of the sim node changed."""
-        if any(p.name in self._names and p.name.startswith(("imu.", "wrist_ft.")) for p in parameters):
+        if any(p.name in self._names for p in parameters):
             self._apply_noise()
 
     # ----- publishing ----------------------------------------------------------------------
-    def _period(self, name: str) -> float:
-        return 1.0 / float(self._node.get_parameter(name).value)
-
     def publish_due(self, now: float) -> None:
         """Under the lock, at every publication stop: the streams that fell due, each while someone subscribes."""
         eps = 1e-9
         if now + eps >= self._next_imu:
-            self._next_imu = _next_due(self._next_imu, self._period("imu_rate"), now)
+            self._next_imu = _next_due(self._next_imu, self._imu_period, now)
             if self._imu_pub is not None and self._imu_pub.get_subscription_count() > 0:
                 self._publish_imu(now)
         if now + eps >= self._next_wrench:
-            self._next_wrench = _next_due(self._next_wrench, self._period("wrench_rate"), now)
+            self._next_wrench = _next_due(self._next_wrench, self._wrench_period, now)
             data = self._sim.data
             for name, publisher, msg in self._feet:
                 if publisher.get_subscription_count() > 0:
@@ -163,13 +170,7 @@ class SensorStreams:
         msg.orientation.w, msg.orientation.x, msg.orientation.y, msg.orientation.z = q[0], q[1], q[2], q[3]
         msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = w[0], w[1], w[2]
         msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z = a[0], a[1], a[2]
-        noise = self._node.get_parameter
-        # Covariances (row-major 3x3, diagonal): the noise as configured, a floor for the true values (0 = unknown in ROS).
-        gyro = max(float(noise("imu.gyro_noise").value) ** 2 + float(noise("imu.gyro_bias").value) ** 2, 1e-8)
-        accel = max(float(noise("imu.accel_noise").value) ** 2 + float(noise("imu.accel_bias").value) ** 2, 1e-6)
-        msg.orientation_covariance = _diagonal(1e-6)  # ground truth from the simulation
-        msg.angular_velocity_covariance = _diagonal(gyro)
-        msg.linear_acceleration_covariance = _diagonal(accel)
+        msg.orientation_covariance, msg.angular_velocity_covariance, msg.linear_acceleration_covariance = self._covariances
         self._imu_pub.publish(msg)
 
     def _publish_hands(self, now: float) -> None:

@@ -139,6 +139,10 @@ class SensorSuite:
         return np.array(inside)
 
     # ----- configuration -------------------------------------------------------------------
+    @property
+    def imu_noise(self) -> ImuNoise:
+        return self._imu_noise
+
     def set_imu_noise(self, noise: ImuNoise) -> None:
         """New noise settings; the bias is drawn again from the seed."""
         self._imu_noise = noise
