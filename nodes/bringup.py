@@ -2,8 +2,12 @@
 
 ``bringup --robot g1|panda [--scene course] [--rtf X] [--paused]``. Each node runs in its own
 process (so the physics thread never waits for a server's Python), with the same names and
-interfaces as when started one by one. Ctrl-C (or SIGTERM) stops them all; if one node dies,
-the others are stopped too and bringup exits with an error.
+interfaces as when started one by one. Ctrl-C (or SIGTERM) stops them all.
+
+A node that dies (a non-zero exit) is reported (which, its exit code, its last lines of output) and started again, as
+a launch file's ``respawn`` does, after ``--respawn-delay`` seconds and at most ``--respawn-limit``
+times per node; the others keep running (the servers serve a restarted /sim, which starts from its
+keyframe). With ``--no-respawn`` a dying node stops the others and bringup exits with an error.
 """
 
 from __future__ import annotations
@@ -23,7 +27,14 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--scene", default="", help="scene variant (g1: open, course); default: the robot's own")
     parser.add_argument("--rtf", type=float, default=1.0, help="real-time factor; 0 = as fast as possible")
     parser.add_argument("--paused", action="store_true", help="start with the physics paused")
-    return parser.parse_args(argv)
+    parser.add_argument("--no-respawn", dest="respawn", action="store_false",
+                        help="a node that dies stops the others (default: it is started again)")
+    parser.add_argument("--respawn-limit", type=int, default=5, help="restarts allowed per node (default 5)")
+    parser.add_argument("--respawn-delay", type=float, default=1.0, help="wall seconds before a restart (default 1)")
+    options = parser.parse_args(argv)
+    if options.respawn_limit < 0 or not 0.0 <= options.respawn_delay <= 60.0:
+        parser.error("--respawn-limit must be >= 0 and --respawn-delay in [0, 60] s")
+    return options
 
 
 def commands_for(options: argparse.Namespace, ros_args: list[str]) -> list[list[str]]:
@@ -56,25 +67,42 @@ def main(argv: list[str] | None = None) -> int:
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
-    children = []
+    children: list[ChildProcess] = []
+    restarts: dict[int, int] = {}
     try:
-        for command in commands_for(options, argv[split:]):
-            children.append(ChildProcess(command, inherit_output=True, own_group=False))
+        commands = commands_for(options, argv[split:])
+        for command in commands:
+            children.append(ChildProcess(command, own_group=False, relay_output=True))
         print(f"bringup: running {', '.join(c.args[0] for c in children)} for {options.robot}; Ctrl-C stops them",
               flush=True)
         while not stop.wait(0.2):
-            dead = [c for c in children if not c.alive()]
-            if dead:
-                print(f"bringup: {dead[0].args[0]} exited with {dead[0].process.returncode}; stopping the others",
+            for index, child in enumerate(children):
+                if child.alive():
+                    continue
+                code = child.process.returncode
+                if code == 0:  # it was asked to stop (Ctrl-C reaches the whole process group): so is everything
+                    print(f"bringup: {child.args[0]} exited cleanly; stopping the others", flush=True)
+                    return 0
+                last = "\n".join(f"    {line}" for line in list(child.last_lines)[-10:])
+                print(f"bringup: {child.args[0]} died with exit code {code}; its last output:\n{last}",
                       file=sys.stderr, flush=True)
-                return 1
+                if not options.respawn or restarts.get(index, 0) >= options.respawn_limit:
+                    why = "respawn is off" if not options.respawn else f"it was restarted {options.respawn_limit} times"
+                    print(f"bringup: {why}; stopping the others", file=sys.stderr, flush=True)
+                    return 1
+                if stop.wait(options.respawn_delay):
+                    return 0
+                restarts[index] = restarts.get(index, 0) + 1
+                note = " (it starts from its keyframe)" if child.args[0] == "sim_node" else ""
+                print(f"bringup: restarting {child.args[0]}{note}, restart {restarts[index]} of {options.respawn_limit}",
+                      file=sys.stderr, flush=True)
+                children[index] = ChildProcess(commands[index], own_group=False, relay_output=True)
         return 0
     finally:
         for child in children:  # signal all first, then wait: they shut down in parallel
             child.send_signal(signal.SIGINT)
         for child in reversed(children):
             child.stop(interrupt=False)
-
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -2,27 +2,40 @@
 
 from __future__ import annotations
 
+import collections
 import os
 import pathlib
 import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import typing
 from collections.abc import Iterator
 from contextlib import contextmanager
 
 BIN = pathlib.Path(sys.executable).parent
+LAST_LINES = 20  # lines of a relayed child's output kept to report when it dies
 
 
 class ChildProcess:
     """An executable of this venv in its own process group, its output in a log file."""
 
     def __init__(self, args: list[str], log_dir: pathlib.Path | None = None, inherit_output: bool = False,
-                 own_group: bool = True) -> None:
+                 own_group: bool = True, relay_output: bool = False) -> None:
         self.args = args
         self._own_group = own_group
         self._log: typing.IO[bytes] | None = None
+        self._relay: threading.Thread | None = None
+        self.last_lines: collections.deque[str] = collections.deque(maxlen=LAST_LINES)
+        if relay_output:  # output relayed line by line to the caller's stdout, its last lines kept
+            self.log_path = pathlib.Path("/dev/null")
+            self.process = subprocess.Popen(
+                [str(BIN / args[0]), *args[1:]], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                start_new_session=own_group, env=dict(os.environ))
+            self._relay = threading.Thread(target=self._relay_lines, name=f"{args[0]}-output", daemon=True)
+            self._relay.start()
+            return
         if inherit_output:  # output goes where the caller's goes (a launcher in a terminal)
             self.log_path = pathlib.Path("/dev/null")
         elif log_dir is not None:
@@ -39,7 +52,17 @@ class ChildProcess:
             start_new_session=own_group, env=dict(os.environ),
         )
 
+    def _relay_lines(self) -> None:
+        assert self.process.stdout is not None
+        for raw in self.process.stdout:
+            line = raw.decode(errors="replace")
+            self.last_lines.append(line.rstrip("\n"))
+            sys.stdout.write(line)
+            sys.stdout.flush()
+
     def output(self) -> str:
+        if self._relay is not None:
+            return "\n".join(self.last_lines)
         return self.log_path.read_text(errors="replace")
 
     def alive(self) -> bool:
@@ -72,6 +95,8 @@ class ChildProcess:
         self.send_signal(signal.SIGKILL)  # leftovers of the group, if any
         if self._log is not None:
             self._log.close()
+        if self._relay is not None:
+            self._relay.join(2.0)
         return int(self.process.returncode)
 
 
