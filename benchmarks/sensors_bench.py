@@ -6,6 +6,9 @@ Measured in one run on this machine:
      1 Hz real-time-factor reports read), in interleaved rounds on one node: with nobody subscribed to
      the sensor streams (they are then not built) and with this process subscribed to /imu (100 Hz),
      both /<foot>/wrench and /sim/hand_sensors (50 Hz) and /sim/battery (30 Hz). Medians of the rounds.
+ (a') the same node at real time (real_time_factor 1): its process's CPU [% of one core] over windows
+     without and with the sensor streams subscribed (interleaved; medians): the publishing cost at the
+     streams' nominal rates, without the as-fast-as-possible run's flood of messages.
  (b) the battery meter in the core, idle: ``Simulation.step_physics`` of the standing G1 with and
      without the meter in the legs' slot (the meter integrates |tau * qdot| every control step, so the
      idle robot is stepped control step by control step instead of in batched ``mj_step`` calls).
@@ -88,6 +91,33 @@ def node_ratios(session: RosSession, spec: robot_models.RobotSpec, rounds: int) 
     return ratios
 
 
+def process_cpu_seconds(pid: int) -> float:
+    with open(f"/proc/{pid}/stat") as handle:
+        fields = handle.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def realtime_cpu(session: RosSession, rounds: int, seconds: float) -> dict[str, list[float]]:
+    """CPU [% of one core] of the sim process at real time, without and with the sensor streams subscribed."""
+    args = ["sim_node", "--ros-args", "-p", f"robot:={ROBOT}", "-p", "real_time_factor:=1.0"]
+    cpu: dict[str, list[float]] = {"without": [], "with": []}
+    with running(args) as node:
+        rtf = session.record(Float64, "/sim/real_time_factor", keep=10)
+        session.wait_for(lambda: rtf.count >= 2, 60.0, "the node's first reports")
+        rtf.stop()
+        for _ in range(rounds):
+            for mode in ("without", "with"):
+                streams = subscribe_sensors(session) if mode == "with" else []
+                if streams:
+                    session.wait_for(lambda: all(s.count > 0 for s in streams), 30.0, "every sensor stream")  # noqa: B023
+                cpu0, wall0 = process_cpu_seconds(node.process.pid), time.monotonic()
+                time.sleep(seconds)  # a measurement window of wall time (nothing to wait for)
+                cpu[mode].append(100.0 * (process_cpu_seconds(node.process.pid) - cpu0) / (time.monotonic() - wall0))
+                for stream in streams:
+                    stream.stop()
+    return cpu
+
+
 def meter_rates(spec: robot_models.RobotSpec, rounds: int) -> dict[str, list[float]]:
     """Physics steps per wall second of the standing G1 in the core, without and with the battery meter."""
     rates: dict[str, list[float]] = {"without": [], "with": []}
@@ -129,10 +159,14 @@ def main() -> None:
     spec = robot_models.load(ROBOT)
     with RosSession("sensors_bench", use_sim_time=False) as session:
         ratios = node_ratios(session, spec, options.rounds)
+        cpu = realtime_cpu(session, 3, 4.0)
     without, with_ = statistics.median(ratios["without"]), statistics.median(ratios["with"])
     print(f"[g1] (a) sim node / raw mj_step, medians of {options.rounds} interleaved rounds: without sensor subscribers "
           f"{without:.3f}, with /imu, foot and wrist wrenches and the battery subscribed {with_:.3f} "
           f"(cost {100.0 * (1.0 - with_ / without):.1f} % of the node's rate)", flush=True)
+    print(f"[g1] (a') sim node at real time, CPU of its process (% of one core, medians of 3 interleaved 4 s windows): "
+          f"without sensor subscribers {statistics.median(cpu['without']):.1f}, with them "
+          f"{statistics.median(cpu['with']):.1f}", flush=True)
     rates = meter_rates(spec, options.rounds)
     plain, metered = statistics.median(rates["without"]), statistics.median(rates["with"])
     print(f"[g1] (b) core, standing: {plain:.0f} physics steps/s without the battery meter, {metered:.0f} with it "
