@@ -245,7 +245,7 @@ class SimulationStandard:
         node = self._node
         with node.lock:
             node.reset_scene(keep_time=keep_time)
-            # Paused and reset in every scope: the standard's STOPPED.
+            # Paused and reset with the clock: the standard's STOPPED.
             self._stopped_at = self._sim.time if node.paused and not keep_time else None
             response.result = _result(OK, f"reset to keyframe {self._sim.robot.default_keyframe!r}"
                                           f"{'' if keep_time else ', sim time 0'}")
