@@ -109,7 +109,7 @@ def _navigate_goal(goal: NavigateToPose.Goal, robot: RobotSpec, sim: Simulation 
     p, o = goal.pose.pose.position, goal.pose.pose.orientation
     if not all(math.isfinite(v) for v in (p.x, p.y, p.z, o.x, o.y, o.z, o.w)):
         raise InvalidGoalError("goal pose has NaN or infinite values")
-    if math.sqrt(o.x ** 2 + o.y ** 2 + o.z ** 2 + o.w ** 2) < 1e-6:
+    if math.hypot(o.x, o.y, o.z, o.w) < 1e-6:
         raise InvalidGoalError("goal orientation quaternion cannot be normalised (norm 0)")
     check_frame(goal.pose.header.frame_id, robot, "goal pose")
     if sim is None:
@@ -163,7 +163,7 @@ def _validate_move(goal: MoveArm.Goal, robot: RobotSpec) -> str:
     p, o = goal.target.pose.position, goal.target.pose.orientation
     if not all(math.isfinite(v) for v in (p.x, p.y, p.z, o.w, o.x, o.y, o.z)):
         raise InvalidGoalError("target pose has NaN or infinite values")
-    if math.sqrt(o.w ** 2 + o.x ** 2 + o.y ** 2 + o.z ** 2) < 1e-6 and goal.orientation_tolerance != 0.0:
+    if math.hypot(o.w, o.x, o.y, o.z) < 1e-6 and goal.orientation_tolerance != 0.0:
         raise InvalidGoalError("target orientation quaternion cannot be normalised (norm 0); "
                                "give a unit quaternion, or orientation_tolerance 0 for position only")
     check_frame(goal.target.header.frame_id, robot, "target")
