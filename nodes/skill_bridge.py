@@ -27,7 +27,7 @@ from sim_bridge.skills.host import refused_run
 from sim_interfaces.msg import SkillCommand, SkillState
 
 QOS = QoSProfile(depth=100)
-HEARTBEAT_PERIOD_S = 0.25  # [s of wall time] the longest a running goal's state goes unpublished
+HEARTBEAT_PERIOD_S = 0.2  # [s of wall time] the longest a running goal's state goes unpublished
 SEEN_COMMANDS = 256  # recent (resource, goal_seq) starts remembered, so a re-sent START is applied once
 
 

@@ -39,9 +39,12 @@ ACK_TIMEOUT_S = 10.0  # wall seconds for /sim to report a goal it was sent
 CANCEL_ACK_S = 2.0  # wall seconds a cancel request waits for /sim to report it has taken the cancel
 SIM_MATCH_S = 10.0  # wall seconds a server waits at start-up for /sim's goal topics to match
 RESEND_PERIOD_S = 0.1  # a START not yet reported is sent again (a message sent before discovery is lost)
-# /sim publishes each running goal's state at least every 0.25 s of wall time, paused or not
+# /sim publishes each running goal's state at least every 0.2 s of wall time, paused or not
 # (nodes.skill_bridge.HEARTBEAT_PERIOD_S): this long without a word, it has stopped or died.
-SIM_SILENCE_S = 1.5
+SIM_SILENCE_S = 1.8
+# The watchdog runs every RESEND_PERIOD_S; a longer gap means this server itself was starved of CPU
+# (states from /sim may be queued unread): the gap is not counted as /sim's silence.
+STARVED_GAP_S = 0.5
 _TERMINAL = frozenset((SkillState.SUCCEEDED, SkillState.ABORTED, SkillState.CANCELED))
 _seq = itertools.count(1 + (os.getpid() % 4096) * 1_000_000)  # unique per process; /sim echoes it
 _seq_lock = threading.Lock()
@@ -101,6 +104,7 @@ class SkillActionServer:
         self._watchdog_timer = node.create_timer(RESEND_PERIOD_S, self._watchdog, callback_group=group,
                                                  clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._watchdog_timer.cancel()
+        self._last_watchdog = time.monotonic()
 
     # ----- goal life ---------------------------------------------------------------------------
     def _accept(self, goal: Any) -> GoalResponse:
@@ -133,6 +137,8 @@ class SkillActionServer:
         goal = _Goal(handle, command.goal_seq, resource, command)
         with self._lock:
             self._goals[(resource, goal.seq)] = goal
+            if self._watchdog_timer.is_canceled():
+                self._last_watchdog = time.monotonic()
             self._watchdog_timer.reset()  # with the registration: the watchdog cannot miss this goal
         self._send(command)
         try:
@@ -214,10 +220,15 @@ class SkillActionServer:
     def _watchdog(self) -> None:
         """While goals run: re-send unanswered STARTs; end goals /sim never answered or stopped answering."""
         now = time.monotonic()
+        gap, self._last_watchdog = now - self._last_watchdog, now
         with self._lock:
             pending = [goal for goal in self._goals.values() if not goal.done.done()]
             if not pending:
                 self._watchdog_timer.cancel()
+        if gap > STARVED_GAP_S:  # this process was not running: what /sim sent meanwhile may be unread
+            for goal in pending:
+                goal.last_heard = max(goal.last_heard, now - RESEND_PERIOD_S)
+            return
         action = self.binding.action_type
         for goal in pending:
             if goal.acked:
@@ -226,7 +237,7 @@ class SkillActionServer:
                     result.error_code = action.Result.SIM_FAULT
                     result.error_msg = (f"/sim stopped answering: no state of this goal on {SKILL_STATE_TOPIC} for "
                                         f"{now - goal.last_heard:.1f} s of wall time (it reports running goals every "
-                                        "0.25 s, paused or not); the sim node has stopped or died")
+                                        "0.2 s, paused or not); the sim node has stopped or died")
                     self._end(goal, SkillState.ABORTED, result)
             elif now - goal.sent_at > ACK_TIMEOUT_S:
                 result = action.Result()
