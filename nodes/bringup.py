@@ -44,12 +44,12 @@ def commands_for(options: argparse.Namespace, ros_args: list[str]) -> list[list[
     if options.scene:
         sim += ["-p", f"scene:={options.scene}"]
     servers = [["arm_server", "--ros-args", "-p", f"robot:={options.robot}"]]
-    robot = robot_models.load(options.robot)
-    if robot.feet_sites:
+    if robot_models.load(options.robot).feet_sites:
         servers.append(["locomotion_server", "--ros-args", "-p", f"robot:={options.robot}"])
-    if robot.sensors.battery is not None:
+    sensors = robot_models.sensors_of(options.robot)
+    if sensors.battery is not None:
         servers.append(["power_node", "--ros-args", "-p", f"robot:={options.robot}"])
-    if robot.sensors.wrists:
+    if sensors.wrists:
         servers.append(["hand_sensors", "--ros-args", "-p", f"robot:={options.robot}"])
     extra = ros_args[1:] if ros_args else []
     return [command + extra for command in [sim, *servers]]

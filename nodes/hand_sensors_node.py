@@ -70,7 +70,7 @@ class HandSensorsNode(Node):
 
     def __init__(self, robot: str, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
-        wrists = robot_models.load(robot).sensors.wrists
+        wrists = robot_models.sensors_of(robot).wrists
         if not wrists:
             raise robot_models.RobotModelError(f"robot {robot!r} has no wrist force/torque sensors")
         declare(self, (ParameterSpec("robot", robot, "robot whose wrist sensors are served", read_only=True), *PARAMETERS))

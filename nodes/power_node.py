@@ -50,7 +50,7 @@ class PowerNode(Node):
 
     def __init__(self, robot: str, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
-        pack = robot_models.load(robot).sensors.battery
+        pack = robot_models.sensors_of(robot).battery
         if pack is None:
             raise robot_models.RobotModelError(f"robot {robot!r} has no battery (it runs on mains power)")
         declare(self, (ParameterSpec("robot", robot, "robot whose battery is served", read_only=True), *parameters(pack)))

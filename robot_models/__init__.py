@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
 
+from robot_models.sensors import SensorLayout
 from robot_models.spec import (
     ArmScene,
     GraspLimits,
@@ -51,7 +53,23 @@ def load(name: str, scene: str | None = None) -> RobotSpec:
     return factory(scene)
 
 
+def sensors_of(name: str) -> SensorLayout:
+    """A robot's sensor layout (and battery pack) without building its model: cheap, for nodes that need only names.
+
+    Each robot module ``robot_models.<name>`` defines it as ``SENSORS``.
+
+    Raises:
+        UnknownRobotError: the name is not registered; the message lists the names that are.
+    """
+    if name not in _REGISTRY:
+        raise UnknownRobotError(f"unknown robot {name!r}; known robots: {', '.join(ROBOT_NAMES)}")
+    layout = getattr(importlib.import_module(f"robot_models.{name}"), "SENSORS", SensorLayout())
+    if not isinstance(layout, SensorLayout):
+        raise RobotModelError(f"robot_models.{name}.SENSORS is not a SensorLayout")
+    return layout
+
+
 __all__ = [
     "ROBOT_NAMES", "ArmScene", "GraspLimits", "JointLimits", "Obstacle", "RobotModelError", "RobotSpec", "UnknownRobotError",
-    "UnknownSceneError", "WalkingLimits", "load",
+    "UnknownSceneError", "WalkingLimits", "load", "sensors_of",
 ]

@@ -122,3 +122,8 @@ def test_reset_pose_preempts_a_walk_and_refuses_a_fallen_robot(g1, legs):
     sim.step(1)
     assert refused.outcome is not None and refused.outcome.code == "FALLEN"
     assert "fallen: reset the simulation" in refused.outcome.message
+
+
+@pytest.mark.parametrize("name", robot_models.ROBOT_NAMES)
+def test_the_sensor_layout_is_known_without_building_the_model(name):
+    assert robot_models.sensors_of(name) == robot_models.load(name).sensors

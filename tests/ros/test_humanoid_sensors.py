@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import WrenchStamped
-from sensor_msgs.msg import Imu, JointState
+from sensor_msgs.msg import BatteryState, Imu, JointState
 from std_srvs.srv import Trigger
 from tf2_msgs.msg import TFMessage
 
@@ -91,6 +91,7 @@ def test_standing_the_feet_carry_the_robots_weight(client, g1, spec):
 
 
 def test_the_battery_drains_while_walking_a_low_battery_stops_a_walk_and_a_reset_fills_it(client, g1, walk):
+    states = client.record(BatteryState, "/battery_state", keep=100)
     reset(client)
     client.wait_for(lambda: level(client).level_percent > 99.9, 30.0, "a full battery after the reset")
     before = level(client).level_percent
@@ -118,6 +119,10 @@ def test_the_battery_drains_while_walking_a_low_battery_stops_a_walk_and_a_reset
     assert not refused.success and "[0, 100]" in refused.message
     ok, reason = client.set_parameter("power", "capacity_wh", 1e6)
     assert not ok and "10000" in reason
+    client.wait_for(lambda: states.count > 0, 30.0, "/battery_state from /power's timer")
+    state = states.latest
+    assert 0.0 < state.percentage <= 1.0 and state.voltage > 40.0 and state.current < 0.0, state
+    states.stop()
 
 
 def test_reset_pose_after_a_walk_returns_to_the_default_posture(client, g1, walk, spec):
