@@ -7,7 +7,7 @@ STAMPS := $(VENV)/.stamps
 INTERFACE_FILES := $(shell find interfaces -type f)
 export MUJOCO_GL ?= egl
 
-.PHONY: setup lint demo test test-fast bench bench-sim bench-walk bench-arm bench-nav bench-idle bench-scenario bench-response bench-locomotion bench-sensors clean
+.PHONY: setup lint demo test test-fast bench bench-sim bench-walk bench-arm bench-nav bench-idle bench-scenario bench-response bench-locomotion bench-sensors bench-soak clean
 
 setup: $(STAMPS)/project
 
@@ -79,3 +79,7 @@ bench-response: setup
 
 bench-sensors: setup
 	$(PY) benchmarks/sensors_bench.py
+
+# 10 minutes, 10 client processes against the G1 (not part of `make bench`): RSS, CPU, goals, /joint_states.
+bench-soak: setup
+	$(PY) benchmarks/soak_bench.py --minutes 10 --clients 10
