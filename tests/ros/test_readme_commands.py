@@ -7,6 +7,8 @@ into the request or goal, the same service or action. ``sim`` and ``scenario`` l
 (a ``scenario run`` or ``sweep`` line is validated here; the scenarios themselves run in
 ``tests/scenarios`` and ``make demo``). Set-up lines (make, sourcing, export, cp) are the shell's.
 A line of a kind this file does not know fails the test, so a new README command needs a check.
+Blocks fenced ``sh`` are the commands; a recipe that installs software from elsewhere (ros2cli) is
+fenced ``bash`` and not run.
 """
 
 from __future__ import annotations
