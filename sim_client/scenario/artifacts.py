@@ -4,8 +4,11 @@
 - ``recording.mcap``: every topic (action feedback and status included), serialized CDR with
   ROS 2 message definitions (profile ``ros2``, schema encoding ``ros2msg``), as rosbag2 writes
   it, so Foxglove and rosbag2 read it;
-- ``video.mp4``: the run re-rendered offscreen from the recorded state with the ``track`` camera;
-- ``*.png``: plots of the quantities the expectations check.
+- ``video.mp4``: the run re-rendered offscreen from the recorded state (:mod:`sim_client.scenario.render`);
+- ``*.png``: plots of the path, the speeds and the quantities the expectations check
+  (:mod:`sim_client.scenario.plots`).
+
+The time series below (:class:`Series`) are what the measures, the video and the plots read.
 """
 
 from __future__ import annotations
@@ -296,79 +299,6 @@ def _series(rows: list[tuple], width: int) -> Series:
         return Series(np.zeros(0), np.zeros((0, width)))
     array = np.array(sorted(rows, key=lambda r: r[0]), dtype=float)
     return Series(array[:, 0], array[:, 1:])
-
-
-# ----- video --------------------------------------------------------------------------------
-def render_video(robot_name: str, odom: Series, joints: tuple[list[str], Series], objects: dict[str, Series],
-                 start: float, end: float, path: pathlib.Path, fps: int = 20, size: tuple[int, int] = (640, 480),
-                 speed: float = 1.0, shadows: bool = False) -> int:
-    """Re-render the recorded run with the model's ``track`` camera into an MP4; returns frames.
-
-    Headless rendering runs on the CPU here: a 640x480 G1 frame costs ~0.3 s with shadows and
-    reflections, ~0.12 s without, so they are off by default and the video is 20 fps.
-
-    Args:
-        speed: sim seconds per video second.
-        shadows: render shadows and reflections (about 2.5x slower on a CPU renderer).
-    """
-    import imageio_ffmpeg
-    import mujoco
-
-    import robot_models
-
-    robot = robot_models.load(robot_name)
-    model = robot.model
-    data = mujoco.MjData(model)
-    if robot.default_keyframe:
-        mujoco.mj_resetDataKeyframe(model, data, model.key(robot.default_keyframe).id)
-    names, joint_values = joints
-    joint_adr = [(i, int(model.joint(n).qposadr[0])) for i, n in enumerate(names) if _has_joint(model, n)]
-    base_adr = -1
-    if robot.floating_base:
-        body = model.body(robot.base_body).id
-        base_adr = int(model.jnt_qposadr[int(model.body_jntadr[body])])
-    object_adr = {name: int(model.jnt_qposadr[int(model.body_jntadr[model.body(name).id])]) for name in objects}
-    width, height = size
-    model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
-    model.vis.global_.offheight = max(model.vis.global_.offheight, height)
-    frames = max(1, int((end - start) / speed * fps))
-    writer = imageio_ffmpeg.write_frames(str(path), (width, height), fps=fps, codec="libx264", pix_fmt_out="yuv420p",
-                                         macro_block_size=16, output_params=["-preset", "veryfast", "-crf", "26"])
-    writer.send(None)
-    count = 0
-    with mujoco.Renderer(model, height=height, width=width) as renderer:
-        for k in range(frames):
-            t = start + k * speed / fps
-            row = joint_values.at(t)
-            if row is not None:
-                for i, adr in joint_adr:
-                    data.qpos[adr] = row[i]
-            if base_adr >= 0:
-                pose = odom.at(t)
-                if pose is not None:
-                    data.qpos[base_adr:base_adr + 3] = pose[0:3]
-                    data.qpos[base_adr + 3:base_adr + 7] = pose[4:8]
-            for name, adr in object_adr.items():
-                pose = objects[name].at(t)
-                if pose is not None:
-                    data.qpos[adr:adr + 7] = pose[0:7]
-            mujoco.mj_forward(model, data)
-            renderer.update_scene(data, camera="track")
-            if not shadows:
-                renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
-                renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
-            writer.send(np.ascontiguousarray(renderer.render()))
-            count += 1
-    writer.close()
-    return count
-
-
-def _has_joint(model: Any, name: str) -> bool:
-    try:
-        model.joint(name)
-    except KeyError:
-        return False
-    return True
 
 
 # ----- report -------------------------------------------------------------------------------

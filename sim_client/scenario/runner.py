@@ -45,7 +45,7 @@ from sim_client.scenario.registry import (
 )
 from sim_client.scenario.schema import Expectation, Scenario
 from sim_client.session import RosSession, TopicRecorder, WaitTimeout
-from sim_interfaces.msg import ObjectStates
+from sim_interfaces.msg import LocomotionState, ObjectStates
 from sim_interfaces.srv import Push, Reset, Step as StepSrv
 
 CHUNK_S = 0.02  # sim time advanced between checks [s]
@@ -164,6 +164,8 @@ class ScenarioRun:
         self.odom = session.record(Odometry, "/odom", keep=1_000_000)
         self.joints = session.record(JointState, "/joint_states", keep=1_000_000)
         self.objects = session.record(ObjectStates, "/objects", keep=1_000_000)
+        # commanded vs measured speed, for the speed plot only: a run without plots carries no extra traffic
+        self.locomotion = session.record(LocomotionState, "/sim/locomotion_state", keep=1_000_000) if options.plots else None
         self._reset = node.create_client(Reset, "/sim/reset")
         self._push = node.create_client(Push, "/sim/push")
         self._step = node.create_client(StepSrv, "/sim/step")
@@ -685,11 +687,9 @@ def _write_artifacts(run_: ScenarioRun, result: RunResult, stream: TextIO) -> No
             result.report.setdefault("artifact_errors", []).append(f"plots: {type(error).__name__}: {error}")
     if run_.options.video and end > start:
         try:
-            objects = {name: artifacts.object_series(run_.objects.messages(), name)
-                       for name in (run_.objects.latest.names if run_.objects.latest else [])}
-            artifacts.render_video(run_.scenario.robot, artifacts.odom_series(run_.odom.messages()),
-                                   artifacts.joint_series(run_.joints.messages()), objects, start, end,
-                                   folder / "video.mp4")
+            from sim_client.scenario import render
+
+            render.render_video(render.recorded_run(run_), folder / "video.mp4")
             paths["video"] = str(folder / "video.mp4")
         except Exception as error:  # noqa: BLE001 - an artifact failing must not hide the verdicts
             result.report.setdefault("artifact_errors", []).append(f"video: {type(error).__name__}: {error}")

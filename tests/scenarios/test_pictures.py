@@ -1,0 +1,154 @@
+"""Pictures a person reads at a glance: the video's floor grid, obstacles, goal marker and overlay; the plots' obstacles,
+planned path and goal marks. Rendered headless (MUJOCO_GL=egl or osmesa) from a G1 course scene."""
+
+from __future__ import annotations
+
+import io
+import json
+import pathlib
+import textwrap
+
+import mujoco
+import numpy as np
+import pytest
+
+import robot_models
+from sim_client.scenario import goalview, overlay, plots, render, schema
+from sim_client.scenario.artifacts import Series
+from sim_client.scenario.goalview import GoalView
+from sim_client.scenario.runner import RunOptions, run
+
+SIZE = (480, 360)
+
+
+@pytest.fixture(scope="module")
+def course() -> robot_models.RobotSpec:
+    return robot_models.load("g1", "course")
+
+
+def walking_odom() -> Series:
+    """The base walking from the origin towards the wall's left end (x, y, z, yaw, qw, qx, qy, qz)."""
+    t = np.linspace(0.0, 4.0, 41)
+    x, y = 0.25 * t, 0.3 * t
+    yaw = np.full_like(t, np.arctan2(0.3, 0.25))
+    rows = np.column_stack([x, y, np.full_like(t, 0.76), yaw, np.cos(yaw / 2), 0 * t, 0 * t, np.sin(yaw / 2)])
+    return Series(t, rows)
+
+
+def navigate_goal(done: float | None = 9.0, status: str = "SUCCEEDED") -> GoalView:
+    return GoalView("nav", "navigate", 1, 0.0, done, status if done is not None else "", "SUCCESS" if done else "",
+                    (3.0, 0.0, 0.0), 0.0, ((0.1, "4.2 m left"), (3.0, "2.9 m left")))
+
+
+def recorded(course: robot_models.RobotSpec, goal: GoalView) -> render.RecordedRun:
+    odom = walking_odom()
+    planned = goalview.planned_paths(course, [goal], odom, goalview.navigation_inflation(course, []))
+    return render.RecordedRun("course_walk", "g1", "course", 0.0, 4.0, odom, ([], Series(np.zeros(0), np.zeros((0, 0)))),
+                              {}, (goal,), planned)
+
+
+def edge_fraction(picture: np.ndarray) -> float:
+    """Share of pixels in the lower third where the brightness jumps (grid lines, checker edges)."""
+    grey = picture[2 * picture.shape[0] // 3:].astype(float).mean(axis=2)
+    jumps = np.maximum(np.abs(np.diff(grey, axis=0))[:, :-1], np.abs(np.diff(grey, axis=1))[:-1, :])
+    return float(np.mean(jumps > 6.0))
+
+
+def obstacle_pixels(picture: np.ndarray) -> int:
+    """Pixels of the course's orange obstacles (rgba 0.8, 0.55, 0.2, lit)."""
+    r, g, b = (picture[..., k].astype(int) for k in range(3))
+    return int(np.sum((r > 140) & (g > 70) & (g < 0.85 * r) & (b < 0.5 * r)))
+
+
+def test_a_frame_shows_the_floor_grid_the_obstacles_the_goal_and_the_overlay(course):
+    goal = navigate_goal()
+    with render.VideoRenderer(recorded(course, goal), SIZE, robot=course) as renderer:
+        picture = renderer.frame(2.0)
+        bare = renderer.frame(2.0, with_overlay=False)
+        # The same view of the physics model as it is (a flat, untextured floor) fails the floor check.
+        camera = mujoco.MjvCamera()
+        camera.lookat[:], camera.distance = renderer.view.lookat, renderer.view.distance
+        camera.azimuth, camera.elevation = renderer.view.azimuth, renderer.view.elevation
+        with mujoco.Renderer(course.model, height=SIZE[1], width=SIZE[0]) as plain:
+            data = mujoco.MjData(course.model)
+            data.qpos[:] = renderer.data.qpos  # the render-only copy adds no joints: the same pose
+            mujoco.mj_forward(course.model, data)
+            plain.update_scene(data, camera=camera)
+            flat = plain.render()
+    assert picture.shape == (SIZE[1], SIZE[0], 3)
+    assert edge_fraction(bare) > 0.04, f"the floor looks uniform: {edge_fraction(bare):.4f}"
+    assert edge_fraction(flat) < 0.04, f"the check does not tell a flat floor: {edge_fraction(flat):.4f}"
+    assert obstacle_pixels(bare) > 2000, "the obstacles are not in view"
+    r, g, b = (bare[..., k].astype(int) for k in range(3))
+    assert np.sum((g > 150) & (r < 0.6 * g) & (b < 0.6 * g)) > 100, "the green goal marker is not in view"
+    band = (slice(0, 30), slice(0, SIZE[0] // 2))
+    assert np.abs(picture[band].astype(int) - bare[band].astype(int)).mean() > 20, "no overlay text at the top left"
+    assert np.array_equal(picture[SIZE[1] // 2], bare[SIZE[1] // 2]), "the overlay covers the middle of the picture"
+
+
+def test_the_overlay_says_the_time_and_each_goals_state():
+    goal = navigate_goal(done=9.0)
+    assert [line.text for line in overlay.overlay_lines("run", 0.0, 0.0, [])] == ["run   t =   0.00 s"]
+    running = overlay.overlay_lines("run", 3.2, 0.0, [goal])
+    assert running[0].text == "run   t =   3.20 s"
+    assert running[1].text == "navigate_to_pose #1 (nav): running, 2.9 m left" and running[1].colour == overlay.RUNNING
+    ended = overlay.overlay_lines("run", 9.5, 0.0, [goal])
+    assert ended[1].text == "navigate_to_pose #1 (nav): SUCCEEDED" and ended[1].colour == overlay.SUCCEEDED
+    failed = GoalView("w", "walk", 2, 1.0, 2.0, "ABORTED", "FELL", None, None, ())
+    assert overlay.overlay_lines("run", 30.0, 0.0, [goal, failed])[1].text == "walk #2 (w): ABORTED (FELL)"
+
+
+def test_the_path_plot_draws_the_obstacles_and_the_planned_path_under_the_walked_path(course):
+    goal = navigate_goal()
+    odom = walking_odom()
+    clearance = goalview.navigation_inflation(course, [])
+    assert clearance == pytest.approx(0.45)
+    planned = goalview.planned_paths(course, [goal], odom, clearance)
+    assert planned["nav"][0] == (0.0, 0.0) and planned["nav"][-1] == (3.0, 0.0) and len(planned["nav"]) > 2
+    fig = plots.path_figure("course_walk", odom, course.obstacles, [goal], planned, clearance)
+    ax = fig.axes[0]
+    gids = {patch.get_gid() for patch in ax.patches}
+    assert {o.name for o in course.obstacles} <= gids
+    assert {f"{o.name}_clearance" for o in course.obstacles} <= gids
+    lines = {line.get_label(): line for line in ax.lines}
+    assert lines["planned (from start)"].get_zorder() < lines["walked (odom)"].get_zorder()
+    assert any(label.startswith("goal nav (navigate_to_pose)") for label in lines)
+
+
+def test_the_speed_plot_shows_commanded_and_measured_speed_and_marks_each_goal():
+    t = np.linspace(0.0, 10.0, 101)
+    locomotion = Series(t, np.column_stack([np.where(t < 9.0, 0.3, 0.0), 0 * t, 0.28 + 0 * t, 0 * t]))
+    odom = walking_odom()
+    fig = plots.speed_figure("course_walk", 0.0, odom, locomotion, [navigate_goal(done=9.0)])
+    speed_ax = fig.axes[0]
+    labels = [line.get_label() for line in speed_ax.lines]
+    assert "commanded (gait, clamped)" in labels and "measured (base velocity)" in labels
+    texts = [text.get_text() for text in speed_ax.texts]
+    assert "nav sent" in texts and "nav SUCCEEDED" in texts
+    assert [line.get_xdata()[0] for line in speed_ax.lines if line.get_linestyle() == "--"] == [9.0]
+
+
+SHORT_COURSE = """\
+name: pictures_course
+robot: g1
+scene: course
+steps:
+  - send_goal: {id: nav, action: navigate, goal: {x: 3.0, y: 0.0}, wait: false}
+  - wait: {duration: 1.5}
+expect:
+  - name: never fell
+    measure: base_height_min
+    gte: 0.5
+"""
+
+
+@pytest.mark.slow
+def test_a_course_run_writes_the_video_and_the_plots(tmp_path):
+    path = tmp_path / "pictures_course.yaml"
+    path.write_text(textwrap.dedent(SHORT_COURSE))
+    result = run(schema.load(path), RunOptions(out=tmp_path, quiet=True, video=True, plots=True), stream=io.StringIO())
+    report = json.loads((result.folder / "report.json").read_text())
+    assert "artifact_errors" not in report, report["artifact_errors"]
+    written = report["artifacts"]
+    assert pathlib.Path(written["video"]).stat().st_size > 20_000
+    assert {pathlib.Path(p).name for p in written["plots"]} >= {"path.png", "speed.png", "base.png"}
