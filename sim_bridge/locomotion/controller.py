@@ -64,10 +64,20 @@ LINE_STEP_LIMIT = 0.04  # [m]
 SPEED_INTEGRAL_GAIN = 0.5
 SPEED_INTEGRAL_LIMIT = 0.05  # [m]
 STEP_ADJUST_DEADBAND = 0.01  # [m]
-SWING_FREEZE = 0.75  # fraction of the swing after which its target no longer changes
+TIMING_ADAPTATION = True  # shorten a swing whose needed landing is out of reach (_adapt_timing)
+TIMING_CROSSOVER = True  # also when the needed landing is inside the other foot's reach limit
+TIMING_TRIGGER = 0.02  # the reach box moves the needed landing more than this [m]
+TIMING_MIN_REMAINING = 0.12  # a shortened swing keeps at least this much time to land [s]
+TIMING_MIN_SWING = 0.20  # shortest swing [s]
+TIMING_MIN_CHANGE = 0.01  # smaller changes of the swing time are not made [s]
+TIMING_SWING_HEIGHT = 1.0  # a restarted swing rises to at most this fraction of the step height ...
+TIMING_MIN_HEIGHT = 0.01  # ... and at least this much [m]
+TIMING_RUSHED_DOUBLE = 0.05  # double support after a shortened swing [s]
+TIMING_RUSH_ERROR = 0.05  # DCM error at touchdown above which double support is rushed too [m]
+SWING_FREEZE = 0.85  # fraction of the swing after which its target no longer changes
 LOAD_RAMP = 0.03  # time for a touching-down foot to take full load [s]
 REACH_X = (-0.20, 0.45)  # swing sole x relative to the stance sole, stance frame [m]
-REACH_LATERAL = (0.15, 0.40)  # outward distance between sole centres [m]
+REACH_LATERAL = (0.15, 0.48)  # outward distance between sole centres [m]
 SUPPORT_MARGIN = 0.01  # the desired CoP stays this far inside the sole [m]
 FALL_HEIGHT = G1_WALKING.fall_height_m  # pelvis height below which the robot has fallen [m] (the robot's spec)
 _FALL_UP_Z = math.cos(G1_WALKING.fall_tilt_rad)  # the pelvis z axis's world z below which the robot has fallen
@@ -368,6 +378,10 @@ class WalkingController:
         self._step_frame_yaw = 0.0
         self._swing_start = (0.0, 0.0, 0.0)  # sole position at lift-off [m]
         self._swing_start_yaw = 0.0
+        self._swing_origin = 0.0  # phase time at which the swing trajectory (re)started [s]
+        self._swing_height = 0.06  # apex of the swing trajectory above its start [m]
+        self._timing_adaptations = 0
+        self._dcm_error = 0.0  # distance of the measured DCM from its reference [m]
         self._swing_target = Footstep(Side.LEFT, 0.0, 0.0, 0.0)  # nominal landing of the current swing
         self._swing_landing = None
         self._swing_closing = False
@@ -537,6 +551,8 @@ class WalkingController:
         position = data.site_xpos[self._sole_site[swing.index]]
         self._swing_start = (float(position[0]), float(position[1]), float(position[2]))
         self._swing_start_yaw = feet[swing.index].yaw
+        self._swing_origin = 0.0
+        self._swing_height = self._params.step_height
         # Walking frame at the start of this step: measured from the stance sole, with the lateral
         # error against the planned path partly removed (line keeping) and the planned heading.
         # The path line is anchored where the walk started and moved only by the commanded steps
@@ -587,7 +603,9 @@ class WalkingController:
         stance = feet[self._stance.index]
         self._zmp_start = (stance.x, stance.y)
         self._stance = target.side
-        self._enter(_Phase.DOUBLE, self._timing[1])
+        # A shortened swing, or a DCM far off its reference: hurry on to the next step.
+        adapted = self._swing_origin > 0.0 or self._dcm_error > TIMING_RUSH_ERROR
+        self._enter(_Phase.DOUBLE, min(self._timing[1], TIMING_RUSHED_DOUBLE) if adapted else self._timing[1])
 
     # ----- footsteps ----------------------------------------------------------------------
     def _advance_frame(self, frame_pos: Point, frame_yaw: float, swing: Side, velocity: Velocity) -> tuple[Point, float]:
@@ -739,14 +757,21 @@ class WalkingController:
             preview.add(SETTLE_DURATION, last, mid)
             preview.add(1.0, mid, mid)
 
-    def _adjusted_landing(self, stance: Footstep, cop: Point, dcm: Point, planned_dcm: Point) -> Footstep:
+    def _adjusted_landing(
+        self, stance: Footstep, cop: Point, dcm: Point, planned_dcm: Point, remaining: float
+    ) -> tuple[Footstep, float]:
         """Step adjustment: move the landing by the predicted end-of-step DCM error.
 
         The error is measured against the unadjusted plan (``planned_dcm``, the end-of-swing DCM of
         the preview built from the nominal target), so the adjustment does not cancel itself.
+
+        Args:
+            remaining: swing time left [s]; the DCM error grows as exp(omega * remaining).
+
+        Returns:
+            The landing, and how far [m] the reach box moved it from where the DCM needs it.
         """
         target = self._swing_target
-        remaining = max(self._phase_duration - self._phase_time, 0.0)
         growth = math.exp(self._omega * remaining)
         offset_x = cop[0] + growth * (dcm[0] - cop[0]) - planned_dcm[0]
         offset_y = cop[1] + growth * (dcm[1] - cop[1]) - planned_dcm[1]
@@ -758,10 +783,45 @@ class WalkingController:
         away = min(max(LINE_STEP_GAIN * self._line_error, -LINE_STEP_LIMIT), LINE_STEP_LIMIT)
         away_x, away_y = rotate(self._line_yaw, 0.0, away)
         if scale == 0.0 and away == 0.0:
-            return target
-        x, y = self._clip_reach(target.x + offset_x * scale + away_x, target.y + offset_y * scale + away_y,
-                                target.side, stance)
-        return Footstep(target.side, x, y, target.yaw)
+            return target, 0.0
+        wanted_x, wanted_y = target.x + offset_x * scale + away_x, target.y + offset_y * scale + away_y
+        x, y = self._clip_reach(wanted_x, wanted_y, target.side, stance)
+        excess_x, excess_y = unrotate(stance.yaw, wanted_x - x, wanted_y - y)
+        if not TIMING_CROSSOVER and excess_y * target.side.sign < 0.0:
+            excess_y = 0.0  # a crossover the feet cannot make: landing sooner does not help
+        return Footstep(target.side, x, y, target.yaw), math.hypot(excess_x, excess_y)
+
+    def _adapt_timing(self, data: mujoco.MjData, stance: Footstep, cop: Point, dcm: Point, planned_dcm: Point) -> None:
+        """Step-timing adaptation: when the landing the DCM needs is out of reach, land sooner.
+
+        The DCM error grows as exp(omega t) until touchdown, so an earlier touchdown needs a
+        smaller step. The swing is shortened to the longest remaining time (in steps of 15%, at
+        least :data:`TIMING_MIN_REMAINING`) whose landing is within reach, and the swing trajectory
+        restarts from where the sole is.
+        """
+        elapsed = self._phase_time
+        remaining = self._phase_duration - elapsed
+        shortest = max(TIMING_MIN_REMAINING, TIMING_MIN_SWING - elapsed)
+        if remaining - shortest < TIMING_MIN_CHANGE:
+            return
+        if self._adjusted_landing(stance, cop, dcm, planned_dcm, remaining)[1] <= TIMING_TRIGGER:
+            return
+        chosen = remaining
+        while chosen > shortest:
+            chosen = max(chosen * 0.85, shortest)
+            if self._adjusted_landing(stance, cop, dcm, planned_dcm, chosen)[1] <= TIMING_TRIGGER:
+                break
+        if remaining - chosen < TIMING_MIN_CHANGE:
+            return
+        self._phase_duration = elapsed + chosen
+        self._timing_adaptations += 1
+        swing = stance.side.other
+        position = data.site_xpos[self._sole_site[swing.index]]
+        xmat = data.site_xmat[self._sole_site[swing.index]]
+        self._swing_start = (float(position[0]), float(position[1]), float(position[2]))
+        self._swing_start_yaw = math.atan2(float(xmat[3]), float(xmat[0]))
+        self._swing_origin = elapsed
+        self._swing_height = max(TIMING_SWING_HEIGHT * self._params.step_height - self._swing_start[2], TIMING_MIN_HEIGHT)
 
     # ----- tasks ------------------------------------------------------------------------
     def _support_hull(self, data: mujoco.MjData, sides: tuple[int, ...]) -> list[Point]:
@@ -795,6 +855,7 @@ class WalkingController:
         reference = self._preview.reference(self._phase_time, omega, first_end_dcm)
         dcm = (cx + vx / omega, cy + vy / omega)
         gain = 1.0 + DCM_GAIN / omega
+        self._dcm_error = math.hypot(dcm[0] - reference.dcm_x, dcm[1] - reference.dcm_y)
         cop_x = reference.zmp_x + gain * (dcm[0] - reference.dcm_x)
         cop_y = reference.zmp_y + gain * (dcm[1] - reference.dcm_y)
         single = self._phase is _Phase.SINGLE
@@ -817,14 +878,17 @@ class WalkingController:
             swing = stance.other
             load[swing.index] = 0.0
             if self._phase_time < SWING_FREEZE * self._phase_duration or self._swing_landing is None:
-                # The end-of-swing DCM of the plan: the reference at the end of the first piece.
-                planned = self._preview.reference(self._phase_duration, omega, first_end_dcm)
-                self._swing_landing = self._adjusted_landing(
-                    feet[stance.index], cop, dcm, (planned.dcm_x, planned.dcm_y)
-                )
+                # The end-of-swing DCM of the plan: the reference at the end of the first piece
+                # (the DCM the ZMP plan after this swing needs; it does not depend on the swing's length).
+                planned = (first_end_dcm[0], first_end_dcm[1])
+                if TIMING_ADAPTATION and self._phase_time < SWING_FREEZE * self._phase_duration:
+                    self._adapt_timing(data, feet[stance.index], cop, dcm, planned)
+                remaining = max(self._phase_duration - self._phase_time, 0.0)
+                self._swing_landing, _ = self._adjusted_landing(feet[stance.index], cop, dcm, planned, remaining)
+            origin = self._swing_origin
             sample = swing_sample(
-                self._swing_start, self._swing_start_yaw, self._swing_landing, self._params.step_height,
-                self._phase_time, self._phase_duration,
+                self._swing_start, self._swing_start_yaw, self._swing_landing, self._swing_height,
+                self._phase_time - origin, self._phase_duration - origin,
             )
             swing_refs[swing.index] = sample
             heading = _mid_angle(feet[stance.index].yaw, sample.yaw)

@@ -185,6 +185,24 @@ def test_walks_at_0_8_m_s_on_its_line(walker):
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("direction_deg", [90.0, 270.0])
+def test_absorbs_a_10_n_s_sideways_push_in_mid_swing_and_walks_on(walker, direction_deg):
+    sim, controller = walker
+    controller.set_velocity_command(0.5, 0.0, 0.0)
+    _run(sim, controller, 4.0)
+    _run_until(sim, controller, lambda: controller.gait_phase().kind == "double", deadline=1.0)
+    _run_until(sim, controller, lambda: controller.gait_phase().kind == "single"
+               and controller.gait_phase().elapsed >= 0.12, deadline=1.0)
+    angle = _yaw(sim) + math.radians(direction_deg)
+    sim.push(names.ROOT_BODY, [100.0 * math.cos(angle), 100.0 * math.sin(angle), 0.0], [0.0, 0.0, 0.0], 0.1)
+    _run(sim, controller, 4.0)
+    x0, t0 = _xy(sim)[0], sim.time
+    _run(sim, controller, 2.0)
+    assert (_xy(sim)[0] - x0) / (sim.time - t0) == pytest.approx(0.5, abs=0.1)
+    _stop_and_settle(sim, controller, deadline=6.0)
+
+
+@pytest.mark.slow
 def test_walks_backward_half_a_metre_and_stops(walker):
     sim, controller = walker
     start = _xy(sim)
