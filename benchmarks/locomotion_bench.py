@@ -300,20 +300,33 @@ def turn_in_place(robot: robot_models.RobotSpec, angle_deg: float = 180.0, rate:
         rig.close()
 
 
-def arc(robot: robot_models.RobotSpec, speed: float = 0.5, rate: float = 0.5, seconds: float = 20.0) -> tuple[bool, float, float]:
-    """Walk an arc; returns (fell, turned angle [deg], expected angle [deg]) over the command time."""
+def arc(robot: robot_models.RobotSpec, speed: float = 0.5, rate: float = 0.5, seconds: float = 20.0
+        ) -> tuple[bool, float, float, float, float]:
+    """Walk an arc for ``seconds``; returns (fell, turned angle [deg] over the whole command, the commanded
+    angle [deg], the steady yaw rate [rad/s] and the steady speed along the path [m/s], both from 5 s on)."""
     rig = new_rig(robot)
     try:
         rig.walker.set_velocity_command(speed, 0.0, rate)
-        yaws = [rig.pose()[2]]
+        poses = [rig.pose()]
         ok = True
         for _ in range(round(seconds / 0.1)):
             ok = rig.run(0.1)
-            yaws.append(rig.pose()[2])
+            poses.append(rig.pose())
             if not ok:
                 break
-        turned = float(np.sum(np.diff(np.unwrap(yaws))))
-        return not ok, math.degrees(turned), math.degrees(rate * seconds)
+        track = np.array(poses)
+        yaw = np.unwrap(track[:, 2])
+        steady = track[50:] if len(track) > 60 else track
+        steady_yaw = yaw[50:] if len(track) > 60 else yaw
+        duration = 0.1 * (len(steady) - 1)
+        steady_rate = float(steady_yaw[-1] - steady_yaw[0]) / max(duration, 1e-9)
+        # Speed along the arc: the radius of a least-squares circle through the pelvis track times the yaw rate
+        # (the pelvis also sways sideways each step, so its own path is longer than the arc).
+        x, y = steady[:, 0], steady[:, 1]
+        (a, b, c), *_ = np.linalg.lstsq(np.column_stack([x, y, np.ones_like(x)]), x * x + y * y, rcond=None)
+        radius = math.sqrt(max(c + 0.25 * (a * a + b * b), 0.0))
+        return (not ok, math.degrees(float(yaw[-1] - yaw[0])), math.degrees(rate * seconds), steady_rate,
+                radius * abs(steady_rate))
     finally:
         rig.close()
 
@@ -345,9 +358,11 @@ def motions(robot: robot_models.RobotSpec) -> None:
     turned = turn_in_place(robot, 180.0)
     print(f"  turn in place 180 deg at 0.5 rad/s: turned {turned:.1f} deg (error {turned - 180.0:+.1f} deg, "
           f"{100 * (turned / 180.0 - 1):+.1f}%)", flush=True)
-    fell, got, expected = arc(robot)
+    fell, got, expected, rate, speed = arc(robot)
     print(f"  arc 0.5 m/s, 0.5 rad/s, 20 s: {'FELL' if fell else 'no fall'}, turned {got:.0f} deg of {expected:.0f} "
-          f"({100 * (got / expected - 1):+.1f}%)", flush=True)
+          f"({100 * (got / expected - 1):+.1f}%, the start included); from 5 s on: {rate:.3f} rad/s "
+          f"({100 * (rate / 0.5 - 1):+.1f}%), {speed:.3f} m/s along the arc ({100 * (speed / 0.5 - 1):+.1f}%)",
+          flush=True)
     side = translate(robot, 0.0, 0.2, 1.0)
     print(f"  side step 1 m left at 0.2 m/s: {side:.3f} m ({100 * (side - 1.0):+.1f}%)", flush=True)
     back = translate(robot, -0.3, 0.0, 2.0)

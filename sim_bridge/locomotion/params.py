@@ -63,7 +63,7 @@ class GaitParameters:
     step_height: float = 0.06
     max_forward_speed: float = 0.80
     max_backward_speed: float = 0.30
-    max_lateral_speed: float = 0.15
+    max_lateral_speed: float = 0.20
     max_yaw_rate: float = 0.60
     max_acceleration: float = 0.50
     max_yaw_acceleration: float = 1.00
