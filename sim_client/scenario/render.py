@@ -372,8 +372,11 @@ class VideoRenderer:
     def _choose_view(self, aspect: float) -> View:
         return fit_view(self._points_to_frame(), float(self.model.vis.global_.fovy), aspect, self._azimuth())
 
-    def _tracking_view(self, t: float) -> View:
-        """Follow the base (smoothed over 2 s) from the fitted view's direction, 7 m away."""
+    def view_at(self, t: float) -> View:
+        """The camera at sim time ``t`` [s]: the fitted view; on a long course, following the base
+        (smoothed over 2 s) from the fitted view's direction, 7 m away."""
+        if not self._track:
+            return self.view
         odom = self.recorded.odom.window(t - 1.0, t + 1.0)
         x, y = (odom.values[:, 0:2].mean(axis=0) if len(odom.t) else self._base_xy())
         return View((float(x), float(y), 0.6), 7.0, self.view.azimuth, self.view.elevation)
@@ -382,8 +385,8 @@ class VideoRenderer:
     def frame(self, t: float, with_overlay: bool = True) -> np.ndarray:
         """The picture at sim time ``t`` [s]: RGB, uint8, (height, width, 3)."""
         mujoco = self._mujoco
+        view = self.view_at(t)
         self.pose(t)
-        view = self._tracking_view(t) if self._track else self.view
         camera = self._camera
         camera.lookat[:] = view.lookat
         camera.distance, camera.azimuth, camera.elevation = view.distance, view.azimuth, view.elevation

@@ -86,6 +86,19 @@ def test_a_frame_shows_the_floor_grid_the_obstacles_the_goal_and_the_overlay(cou
     assert np.array_equal(picture[SIZE[1] // 2], bare[SIZE[1] // 2]), "the overlay covers the middle of the picture"
 
 
+def test_a_long_course_is_followed_and_a_short_one_framed_once(course):
+    t = np.linspace(0.0, 40.0, 401)
+    straight = Series(t, np.column_stack([0.3 * t, 0 * t, 0.76 + 0 * t, 0 * t, 1 + 0 * t, 0 * t, 0 * t, 0 * t]))
+    walk = GoalView("walk", "walk", 1, 0.0, 40.0, "SUCCEEDED", "SUCCESS", (12.0, 0.0, 0.0), 0.0, ())
+    empty = ([], Series(np.zeros(0), np.zeros((0, 0))))
+    long_run = render.RecordedRun("walk_12m", "g1", "course", 0.0, 40.0, straight, empty, {}, (walk,))
+    with render.VideoRenderer(long_run, (160, 120), robot=course) as renderer:
+        assert renderer.view_at(20.0).lookat[0] == pytest.approx(6.0, abs=0.1)
+        assert renderer.view_at(20.0).azimuth == renderer.view_at(0.0).azimuth
+    with render.VideoRenderer(recorded(course, navigate_goal()), (160, 120), robot=course) as renderer:
+        assert renderer.view_at(0.0) == renderer.view_at(4.0) == renderer.view
+
+
 def test_the_overlay_says_the_time_and_each_goals_state():
     goal = navigate_goal(done=9.0)
     assert [line.text for line in overlay.overlay_lines("run", 0.0, 0.0, [])] == ["run   t =   0.00 s"]
