@@ -121,7 +121,8 @@ def new_rig(robot: robot_models.RobotSpec, seed: int | None = None, params: Gait
 # ----- straight walks ----------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Straight:
-    """One straight walk: fall, distance [m], steady speed [m/s], lateral drift [m/m], heading drift [deg/m]."""
+    """One straight walk: commanded speed after clamping [m/s], fall, distance [m], steady speed [m/s],
+    lateral drift [m/m], heading drift [deg/m]."""
 
     speed: float
     fell: bool
@@ -139,6 +140,7 @@ def straight(robot: robot_models.RobotSpec, speed: float, distance: float, seed:
     rig = new_rig(robot, seed, params)
     x0, y0, _ = rig.pose()
     rig.walker.set_velocity_command(speed, 0.0, 0.0)
+    commanded = rig.walker.status().commanded.vx  # after clamping to the gait's limits
     t0 = rig.sim.time
     deadline = t0 + distance / max(speed, 0.05) * 1.5 + 8.0
     mark: tuple[float, float] | None = None
@@ -152,7 +154,7 @@ def straight(robot: robot_models.RobotSpec, speed: float, distance: float, seed:
     x, y, yaw = rig.pose()
     covered = max(x - x0, 1e-6)
     steady = (x - mark[0]) / max(rig.sim.time - mark[1], 1e-6) if mark else 0.0
-    result = Straight(speed, not ok, rig.sim.time - t0, covered, steady, abs(y - y0) / covered,
+    result = Straight(commanded, not ok, rig.sim.time - t0, covered, steady, abs(y - y0) / covered,
                       abs(math.degrees(yaw)) / covered, rig.sim.time - t0)
     rig.close()
     return result
@@ -164,8 +166,9 @@ def sweep(robot: robot_models.RobotSpec, speeds: list[float], distance: float, p
     for speed in speeds:
         r = straight(robot, speed, distance, params=params)
         fell = f"{r.fall_time:.1f}s" if r.fell else "no"
-        print(f"{speed:8.2f} {fell:>5} {r.distance:7.2f} {r.steady_speed:9.3f} {100 * (r.steady_speed / speed - 1):6.1f} "
-              f"{100 * r.lateral_per_m:9.2f} {r.heading_per_m:9.3f} {r.sim_time:6.1f}", flush=True)
+        clamped = f"  (commanded {speed:g}, clamped to the gait's {r.speed:g} m/s)" if r.speed < speed - 1e-9 else ""
+        print(f"{r.speed:8.2f} {fell:>5} {r.distance:7.2f} {r.steady_speed:9.3f} {100 * (r.steady_speed / r.speed - 1):6.1f} "
+              f"{100 * r.lateral_per_m:9.2f} {r.heading_per_m:9.3f} {r.sim_time:6.1f}{clamped}", flush=True)
 
 
 def endurance(robot: robot_models.RobotSpec, speed: float, distance: float, seeds: int,

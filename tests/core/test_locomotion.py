@@ -185,6 +185,18 @@ def test_walks_at_0_8_m_s_on_its_line(walker):
 
 
 @pytest.mark.slow
+def test_a_live_change_from_0_5_to_0_8_m_s_reaches_the_new_pace_within_2_s(walker):
+    sim, controller = walker
+    controller.set_velocity_command(0.5, 0.0, 0.0)
+    _run(sim, controller, 5.0)
+    controller.set_velocity_command(0.8, 0.0, 0.0)
+    _run(sim, controller, 2.0)
+    x0, t0 = _xy(sim)[0], sim.time
+    _run(sim, controller, 3.04)  # eight 0.38 s steps
+    assert (_xy(sim)[0] - x0) / (sim.time - t0) == pytest.approx(0.8, abs=0.03)
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("direction_deg", [90.0, 270.0])
 def test_absorbs_a_10_n_s_sideways_push_in_mid_swing_and_walks_on(walker, direction_deg):
     sim, controller = walker
