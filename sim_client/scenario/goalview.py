@@ -38,6 +38,7 @@ class GoalView:
         target: where the goal leads, world frame [m] (x, y, z); None when unknown.
         target_yaw: heading to reach at the target [rad]; None when the goal has none.
         progress: (sim time [s], short text such as ``"1.8 m left"``), one per feedback message, in time order.
+        carried: the object a PickPlace goal moves (``"box_0"``), ``""`` for other goals.
     """
 
     goal_id: str
@@ -50,6 +51,7 @@ class GoalView:
     target: tuple[float, float, float] | None
     target_yaw: float | None
     progress: tuple[tuple[float, str], ...]
+    carried: str = ""
 
     @property
     def server(self) -> str:
@@ -107,7 +109,8 @@ def goal_views(run: Any, odom: Series) -> tuple[GoalView, ...]:
                          for sample in handle.feedback_history)
         views.append(GoalView(goal_id, action, number, sent, None if done is None else float(done),
                               outcome.status if outcome is not None else "",
-                              (outcome.error_name or "") if outcome is not None else "", target, yaw, progress))
+                              (outcome.error_name or "") if outcome is not None else "", target, yaw, progress,
+                              str(getattr(handle.goal, "object_id", "")) if action == "pick_place" else ""))
     return tuple(views)
 
 

@@ -145,6 +145,10 @@ def _add_goal_marker(spec: Any, robot: RobotSpec, goal: GoalView, target: tuple[
             _geom(spec, f"{name}_heading", "box", [0.2, 0.03, 0.006], [x + 0.2 * math.cos(yaw), y + 0.2 * math.sin(yaw), 0.01],
                   [*rgb, 0.95], yaw)
     elif goal.action == "pick_place":
+        carried = spec.body(goal.carried) if goal.carried else None
+        if carried is not None and len(carried.geoms):  # the plate in the colour of what goes on it
+            red, green, blue = (float(v) for v in carried.geoms[0].rgba[:3])
+            rgb = (red, green, blue)
         x, y, z = goalview.on_table(robot, target)
         half = max(robot.arm_scene.object_half_size, 0.01) * 1.6
         _geom(spec, f"{name}_plate", "box", [half, half, 0.0015], [x, y, z + 0.0015], [*rgb, 0.6])
