@@ -190,8 +190,8 @@ GOODBYE_WALL_S = 2.0  # [s] a stopping server spends at most this long getting i
 RESULT_GRACE_S = 0.2  # [s] after its goals' callbacks returned, for the result responses to go out
 
 
-def _end_goals_before_exit(node: Node) -> None:
-    """End the running goals ABORTED "server shutting down"; the executor (still spinning) sends their results."""
+def _end_goals_before_exit(node: Node, executor: Any) -> None:
+    """End the running goals ABORTED "server shutting down" and spin until their results have gone out."""
     from nodes.skill_server import end_goals_of, goals_pending
 
     if not rclpy.ok():
@@ -202,18 +202,14 @@ def _end_goals_before_exit(node: Node) -> None:
     node.get_logger().warning(f"stopping: ended {ended} running goal(s) ABORTED (server shutting down)")
     deadline = time.monotonic() + GOODBYE_WALL_S
     while goals_pending(node) and time.monotonic() < deadline:
-        time.sleep(0.01)  # the executor's threads finish the goals' execute callbacks
-    time.sleep(RESULT_GRACE_S)  # and answer the result requests those callbacks' returns release
-
-
-def _spin(executor: Any) -> None:
-    from rclpy.executors import ExternalShutdownException
-
-    with contextlib.suppress(ExternalShutdownException):
-        executor.spin()
+        executor.spin_once(timeout_sec=0.05)  # the goals' execute callbacks return
+    grace = time.monotonic() + RESULT_GRACE_S
+    while time.monotonic() < grace:
+        executor.spin_once(timeout_sec=0.02)  # and the result requests they release are answered
 
 
 def _serve(node_factory: Callable[[str, list[Parameter]], Node], node_name: str, argv: list[str]) -> int:
+    from rclpy.executors import ExternalShutdownException
 
     import robot_models
     from nodes.cli import StartupError
@@ -239,21 +235,18 @@ def _serve(node_factory: Callable[[str, list[Parameter]], Node], node_name: str,
     guard_parameter_services(node)
     executor = ServerExecutor(num_threads=4)
     executor.add_node(node)
-    # The executor spins in a thread of its own; the main thread waits for SIGINT/SIGTERM (both raise
-    # KeyboardInterrupt here, see init_ros), so the executor still serves while the goals are ended.
-    spinner = threading.Thread(target=_spin, args=(executor,), name="executor", daemon=True)
-    spinner.start()
+    # Spun here in short waits, so SIGINT/SIGTERM (KeyboardInterrupt, see init_ros) lands within 0.2 s
+    # while the ROS context stays up: the running goals can still be ended and their results sent.
     try:
-        while spinner.is_alive():
-            spinner.join(0.2)
-    except KeyboardInterrupt:
+        while rclpy.ok():
+            executor.spin_once(timeout_sec=0.2)
+    except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, signal.SIG_IGN)  # a second signal must not interrupt the clean-up
-        _end_goals_before_exit(node)
-        executor.shutdown(timeout_sec=5.0)  # the spinning thread returns; then nothing uses the node
-        spinner.join(5.0)
+        _end_goals_before_exit(node, executor)
         node.destroy_node()
+        executor.shutdown()
         rclpy.try_shutdown()
     return 0

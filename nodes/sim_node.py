@@ -13,6 +13,7 @@ import math
 import signal
 import sys
 import threading
+import time
 import traceback
 from dataclasses import dataclass
 from typing import Any
@@ -290,6 +291,9 @@ class SimNode(LifecycleNode):
             with self._lock:
                 self._advance_to_next_event()
             self._pacer.pace(self.sim.time)
+            # Let a service or timer waiting for the lock have it: behind real time (or at rtf 0) the
+            # pacer does not sleep, and this thread would take the lock straight back, again and again.
+            time.sleep(0)
 
     def _advance_to_next_event(self) -> None:
         """Step whole control steps up to the next publication due, then publish what is due."""
@@ -442,9 +446,9 @@ class SimNode(LifecycleNode):
 
     def set_paused(self, paused: bool) -> bool:
         """Pause or resume the physics thread; returns whether it was paused before."""
-        with self._lock:
-            was = self._paused
-            self._paused = paused
+        was = self._paused
+        self._paused = paused  # the physics thread reads it before every stretch of stepping
+        with self._lock:  # the stretch under way (if any) ends before this returns
             if not paused:
                 self._pacer.reanchor()
         if not paused:

@@ -143,8 +143,27 @@ class SkillBridge:
         """Wall-clock: the state of every running goal (the same sim stamp while paused: no feedback is due)."""
         if not any(host.runs() for host in set(self._hosts.values())):
             return
-        with self._lock:
-            self.publish_all()
+        # Never queue for the lock: if the physics thread holds it, it is stepping and publishes states.
+        if not self._lock.acquire(blocking=False):
+            return
+        try:
+            if self._pub.get_subscription_count() == 0:
+                return
+            for host in set(self._hosts.values()):
+                for run in host.runs():
+                    if run.status is SkillStatus.RUNNING:
+                        self._pub.publish(self._liveness(run))
+        finally:
+            self._lock.release()
+
+    def _liveness(self, run: SkillRun) -> SkillState:
+        """A running goal's state without feedback: it says /sim is alive, and is never relayed as feedback
+        (feedback follows sim time only, so a lock-stepped run relays the same feedback every time)."""
+        msg = SkillState(skill=run.skill_name, resource=run.resource, goal_seq=run.seq & 0xFFFFFFFF,
+                         reset_epoch=self.epoch, start_epoch=run.epoch, status=int(run.status),
+                         cancel_requested=run.cancel_requested)
+        set_time(msg.header.stamp, self._sim.time)
+        return msg
 
     def _state(self, run: SkillRun) -> SkillState:
         now = self._sim.time

@@ -179,6 +179,8 @@ class SkillActionServer:
             goal.cancel_seen.set()
         action = self.binding.action_type
         if state.status == SkillState.RUNNING:
+            if not state.feedback:  # /sim's wall-clock liveness report: nothing to relay
+                return
             now = seconds_of(state.header.stamp)
             due = now - goal.last_feedback >= self._feedback_period() or state.milestone != goal.milestone
             if due:  # at feedback_rate, the first at once, and at every milestone (e.g. a new stage)
