@@ -13,8 +13,8 @@ import os
 import pathlib
 import sys
 
-HEADLINE = ("walk_2m", "walking_speed_change", "navigate_around_obstacle", "shove_fall_and_recover", "move_arm_sequence",
-            "pick_place_box")
+HEADLINE = ("walk_2m", "walking_speed_change", "walking_speed_0_5_to_0_8", "navigate_around_obstacle",
+            "shove_fall_and_recover", "move_arm_sequence", "pick_place_box")
 
 
 def main(argv: list[str] | None = None) -> int:

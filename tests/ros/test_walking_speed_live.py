@@ -1,0 +1,71 @@
+"""The tutorials' example through the standard parameter services: walking_speed 0.5 -> 0.8 mid-walk.
+
+A plain rclpy client sets ``/locomotion``'s ``walking_speed`` with ``SetParameters`` (what
+``ros2 param set`` calls) while a Walk goal runs on the parameter's pace, and measures the pace on
+/odom: the new pace within 2 s of sim time, held afterwards, and the walk ends where it should.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from action_msgs.msg import GoalStatus
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import SetParameters
+
+from sim_interfaces.action import Walk
+from tests.ros.actions import ready_client, result, send, wait_feedback
+from tests.ros.processes import running
+
+pytestmark = pytest.mark.slow
+
+READY_S = 90.0
+
+
+def set_walking_speed(client, value: float) -> None:
+    request = SetParameters.Request(parameters=[Parameter(
+        name="walking_speed", value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value))])
+    answer = client.call(SetParameters, "/locomotion/set_parameters", request, timeout=READY_S)
+    assert answer.results[0].successful, answer.results[0].reason
+
+
+def stamp(msg: Odometry) -> float:
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+def pace(odom, t_from: float, t_to: float) -> float:
+    """Mean forward pace [m/s] between two sim times, from the recorded /odom."""
+    def at(t: float) -> Odometry:
+        return min(odom.messages(), key=lambda m: abs(stamp(m) - t))
+
+    a, b = at(t_from), at(t_to)
+    assert abs(stamp(a) - t_from) < 0.1 and abs(stamp(b) - t_to) < 0.1, "/odom covers the window"
+    return math.dist((a.pose.pose.position.x, a.pose.pose.position.y),
+                     (b.pose.pose.position.x, b.pose.pose.position.y)) / (stamp(b) - stamp(a))
+
+
+def test_walking_speed_from_0_5_to_0_8_mid_walk(client):
+    # Real time: the client's latest /odom is then the sim's present, so the change is placed in sim time.
+    with running(["bringup", "--robot", "g1", "--rtf", "1"]):
+        walk = ready_client(client, Walk, "/walk", timeout=READY_S)
+        set_walking_speed(client, 0.5)
+        odom = client.record(Odometry, "/odom", keep=1_000_000)
+        sent = send(client, walk, Walk.Goal(distance=12.0))  # speed 0: the walking_speed parameter's pace
+        assert sent.handle.accepted
+        wait_feedback(client, sent, lambda f: f.distance_walked > 1.5, READY_S, "the walk under way at 0.5 m/s")
+        changed = stamp(odom.latest)
+        set_walking_speed(client, 0.8)
+        client.wait_for(lambda: stamp(odom.latest) >= changed + 8.0 or sent.result_future().done(), READY_S,
+                        "8 s of sim time after the change")
+        before = pace(odom, changed - 2.0, changed)
+        after = pace(odom, changed + 2.0, changed + 4.0)
+        steady = pace(odom, changed + 4.0, changed + 8.0)  # whole steps dominate a 4 s window, whatever the phase
+        print(f"pace before {before:.3f}, 2-4 s after {after:.3f}, 4-8 s after {steady:.3f} m/s")
+        assert before == pytest.approx(0.5, rel=0.05)
+        assert after == pytest.approx(0.8, rel=0.10), "the new pace within 2 s of sim time"
+        assert steady == pytest.approx(0.8, rel=0.03), "and held"
+        outcome = result(client, sent, timeout=300.0)
+        assert outcome.status == GoalStatus.STATUS_SUCCEEDED, outcome.result.error_msg
+        assert outcome.result.final_distance == pytest.approx(12.0, abs=0.05)
