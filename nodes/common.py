@@ -29,21 +29,29 @@ def sim_time_overrides(args: list[str] | None) -> list[Parameter]:
     return [] if given else [Parameter("use_sim_time", value=True)]
 
 
-def robot_of_sim(node: Node, timeout_s: float = 30.0) -> str:
-    """Ask ``/sim`` which robot it simulates (its read-only ``robot`` parameter).
+SIM_WAIT_LOG_S = 10.0  # a server waiting for /sim says so this often
 
-    Call from ``main`` before spinning, never from a callback.
+
+def robot_of_sim(node: Node, timeout_s: float = 30.0) -> str:
+    """Ask ``/sim`` which robot it simulates (its read-only ``robot`` parameter), waiting for /sim to come.
+
+    A server started before the sim waits for it as long as it takes (Ctrl-C stops it), and says so
+    every ``SIM_WAIT_LOG_S``. Call from ``main`` before spinning, never from a callback.
 
     Raises:
-        RuntimeError: /sim did not answer within ``timeout_s``.
+        RuntimeError: /sim is there but did not answer within ``timeout_s``.
     """
     client = node.create_client(GetParameters, f"/{SIM_NODE}/get_parameters")
     executor = SingleThreadedExecutor(context=node.context)
     executor.add_node(node)
     try:
-        if not client.wait_for_service(timeout_sec=timeout_s):
-            raise RuntimeError(f"/{SIM_NODE} is not running (no /{SIM_NODE}/get_parameters within {timeout_s:.0f} s); "
-                               "start the sim node first or pass -p robot:=NAME")
+        waited = 0.0
+        while not client.wait_for_service(timeout_sec=SIM_WAIT_LOG_S):
+            waited += SIM_WAIT_LOG_S
+            node.get_logger().warning(f"waiting for /{SIM_NODE} ({waited:.0f} s so far): start the sim node, or pass "
+                                      "-p robot:=NAME to serve without asking it")
+        if waited:
+            node.get_logger().info(f"/{SIM_NODE} is up after {waited:.0f} s")
         future = client.call_async(GetParameters.Request(names=["robot"]))
         executor.spin_until_future_complete(future, timeout_sec=timeout_s)
         if not future.done() or not future.result().values:

@@ -101,3 +101,14 @@ def test_a_paused_sim_keeps_its_goals_and_a_stopped_server_ends_them(client, nod
     assert outcome.status == GoalStatus.STATUS_ABORTED
     assert "shutting down" in outcome.result.error_msg
     assert server.process.wait(timeout=30.0) == 0
+
+
+def test_a_server_started_before_the_sim_waits_for_it_and_says_so(client, nodes):
+    server = nodes("locomotion_server")  # no robot given: it asks /sim, which is not there yet
+    client.wait_for(lambda: "waiting for /sim" in server.output(), READY_S, "the server to say it waits for /sim")
+    assert server.alive()
+    nodes("sim_node", "--ros-args", "-p", "robot:=g1")
+    client.wait_for(lambda: "serving /walk" in server.output(), READY_S, "the server to serve once /sim is up")
+    walk = ready_client(client, Walk, "/walk", timeout=READY_S)
+    outcome = result(client, first_goal(client, walk), timeout=120.0)
+    assert outcome.status == GoalStatus.STATUS_SUCCEEDED, outcome.result.error_msg
