@@ -154,6 +154,10 @@ class Shell:
             args = [args[3], *args[4:]]
         self.count += 1
         self.nodes = ChildProcess(args, self.log_dir / f"{self.count:02d}")
+        # As a user would, the next command comes once the sim is up (and a signal never lands mid start-up).
+        nodes = self.nodes
+        self.client.wait_for(lambda: "active: physics running" in nodes.output() or not nodes.alive(), READY_S,
+                             f"{command!r} to bring /sim up")
 
     def _require_nodes(self, command: str) -> None:
         last_output = self.nodes.output()[-2000:] if self.nodes is not None else ""
