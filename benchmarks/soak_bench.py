@@ -40,22 +40,6 @@ def process_stats(pid: int) -> tuple[float, float]:
     return rss_kib / 1024.0, (int(fields[11]) + int(fields[12])) / ticks
 
 
-def children_of(parent: int) -> dict[str, int]:
-    """name -> pid of the processes ``parent`` started (the nodes of bringup)."""
-    found = {}
-    for entry in pathlib.Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            stat = (entry / "stat").read_text()
-            cmdline = (entry / "cmdline").read_bytes().split(b"\0")
-        except OSError:
-            continue
-        if int(stat.rsplit(")", 1)[1].split()[1]) == parent and len(cmdline) > 1:
-            found[pathlib.Path(cmdline[1].decode()).name] = int(entry.name)
-    return found
-
-
 class Counts:
     def __init__(self) -> None:
         self.lock = threading.Lock()
@@ -185,7 +169,7 @@ def main() -> int:
         return 0
     os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 100))
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    from nodes.processes import ChildProcess
+    from nodes.processes import ChildProcess, child_processes
 
     bringup = ChildProcess(["bringup", "--robot", "g1", "--rtf", "1", "--no-respawn", "--ros-args", "-p",
                             f"joint_state_rate:={JOINT_RATE_HZ}"])
@@ -197,7 +181,7 @@ def main() -> int:
         nodes: dict[str, int] = {}
         while len(nodes) < 5 and bringup.alive():
             time.sleep(0.5)  # until bringup has started its nodes
-            nodes = children_of(bringup.process.pid)
+            nodes = child_processes(bringup.process.pid)
         warm = min(60.0, seconds / 5)
         time.sleep(warm)  # the first sample after start-up allocation
         first = {name: process_stats(pid) for name, pid in nodes.items()}

@@ -110,3 +110,19 @@ def running(args: list[str], log_dir: pathlib.Path | None = None) -> Iterator[Ch
         code = child.stop()
         if code not in (0, -signal.SIGINT, 130):
             sys.stderr.write(f"--- {' '.join(args)} exited with {code}; last output:\n{child.output()[-3000:]}\n")
+
+
+def child_processes(parent: int) -> dict[str, int]:
+    """Executable name -> pid of the processes ``parent`` started (read from /proc; e.g. bringup's nodes)."""
+    found = {}
+    for entry in pathlib.Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+            cmdline = (entry / "cmdline").read_bytes().split(b"\0")
+        except OSError:
+            continue  # it ended meanwhile
+        if int(stat.rsplit(")", 1)[1].split()[1]) == parent and len(cmdline) > 1:
+            found[pathlib.Path(cmdline[1].decode(errors="replace")).name] = int(entry.name)
+    return found

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import os
-import pathlib
 import signal
 
 import pytest
 from action_msgs.msg import GoalStatus
 
-from nodes.processes import ChildProcess
+from nodes.processes import ChildProcess, child_processes
 from sim_interfaces.action import Walk
 from tests.ros.actions import ready_client, result, send, wait_feedback
 
@@ -19,19 +18,8 @@ READY_S = 90.0
 
 
 def child_pid(parent: int, executable: str) -> int | None:
-    """The pid of ``parent``'s child process running ``executable`` (from /proc), if any."""
-    for entry in pathlib.Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            stat = (entry / "stat").read_text()
-            cmdline = (entry / "cmdline").read_bytes().split(b"\0")
-        except OSError:
-            continue
-        ppid = int(stat.rsplit(")", 1)[1].split()[1])
-        if ppid == parent and any(part.endswith(executable.encode()) for part in cmdline[:2]):
-            return int(entry.name)
-    return None
+    """The pid of ``parent``'s child process running ``executable``, if any."""
+    return child_processes(parent).get(executable)
 
 
 def test_a_killed_sim_is_reported_restarted_from_its_keyframe_and_served_again(client, tmp_path):
