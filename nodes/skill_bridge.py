@@ -159,18 +159,20 @@ class SkillBridge:
     def _liveness(self, run: SkillRun) -> SkillState:
         """A running goal's state without feedback: it says /sim is alive, and is never relayed as feedback
         (feedback follows sim time only, so a lock-stepped run relays the same feedback every time)."""
-        msg = SkillState(skill=run.skill_name, resource=run.resource, goal_seq=run.seq & 0xFFFFFFFF,
-                         reset_epoch=self.epoch, start_epoch=run.epoch, status=int(run.status),
-                         cancel_requested=run.cancel_requested)
+        msg = self._header(run)
         set_time(msg.header.stamp, self._sim.time)
         return msg
+
+    def _header(self, run: SkillRun) -> SkillState:
+        """The fields every state of ``run`` carries: who it is, the epochs, the status."""
+        return SkillState(skill=run.skill_name, resource=run.resource, goal_seq=run.seq & 0xFFFFFFFF,
+                          reset_epoch=self.epoch, start_epoch=run.epoch, status=int(run.status),
+                          cancel_requested=run.cancel_requested)
 
     def _state(self, run: SkillRun) -> SkillState:
         now = self._sim.time
         binding = BINDINGS[run.skill_name] if run.skill_name in BINDINGS else None
-        msg = SkillState(skill=run.skill_name, resource=run.resource, goal_seq=run.seq & 0xFFFFFFFF,
-                         reset_epoch=self.epoch, start_epoch=run.epoch, status=int(run.status),
-                         cancel_requested=run.cancel_requested)
+        msg = self._header(run)
         set_time(msg.header.stamp, now if run.status is SkillStatus.RUNNING else run.ended_at)
         if run.outcome is not None:
             msg.message = run.outcome.message
