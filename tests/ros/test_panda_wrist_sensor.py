@@ -7,7 +7,10 @@ import pytest
 from geometry_msgs.msg import WrenchStamped
 
 from nodes.conversions import seconds_of
+from robot_models import panda_constants
+from sim_interfaces.action import PickPlace
 from sim_interfaces.srv import CalibrateHandSensors
+from tests.ros.actions import ready_client, result, send
 from tests.ros.processes import running
 
 pytestmark = pytest.mark.slow
@@ -28,4 +31,37 @@ def test_the_panda_wrist_reads_the_hand_then_zero_after_calibration(client):
         calibrated = [m.wrench.force for m in wrench.messages() if seconds_of(m.header.stamp) > now]
         mean = np.mean([[f.x, f.y, f.z] for f in calibrated], axis=0)
         assert np.linalg.norm(mean) < 0.1, mean
+        wrench.stop()
+
+
+def test_after_calibration_the_wrist_reads_the_weight_of_the_box_it_carries(client):
+    """Along the gripper's axis (vertical: the Panda grasps from above), the calibrated wrench reads ~0 while the
+    fingers close on the box on the table, and the box's weight (0.05 kg: 0.49 N) once it is lifted and carried,
+    against the sensor's noise, offset and drift. (Across the axis, the carry's accelerations show too.)"""
+    with running(["bringup", "--robot", "panda", "--rtf", "2.0"]):
+        pick_place = ready_client(client, PickPlace, "/pick_place", timeout=90.0)
+        wrench = client.record(WrenchStamped, "/wrist/wrench", keep=100_000)
+        client.wait_for(lambda: wrench.count >= 5, 90.0, "/wrist/wrench")
+        answer = client.call(CalibrateHandSensors, "/calibrate_hand_sensors", CalibrateHandSensors.Request(), timeout=60.0)
+        assert answer.success, answer.message
+        goal = PickPlace.Goal(object_id="box_1")
+        goal.place_pose.header.frame_id = "world"
+        goal.place_pose.pose.position.x, goal.place_pose.pose.position.y = 0.40, 0.30
+        sent = send(client, pick_place, goal)
+        outcome = result(client, sent, timeout=240.0)
+        assert outcome.result.error_code == PickPlace.Result.SUCCESS, outcome.result.error_msg
+
+        def axial_force(stages: tuple[int, ...]) -> float:
+            times = [seconds_of(f.object_pose.header.stamp) for f in sent.feedback if f.stage in stages]
+            assert times, f"feedback in stages {stages}"
+            forces = [m.wrench.force.z for m in wrench.messages() if times[0] <= seconds_of(m.header.stamp) <= times[-1]]
+            assert len(forces) >= 10, f"{len(forces)} wrenches in stages {stages}"
+            return float(np.mean(forces))
+
+        weight = panda_constants.BOX_MASS * 9.81
+        grasping = axial_force((PickPlace.Feedback.GRASP,))
+        carrying = axial_force((PickPlace.Feedback.LIFT, PickPlace.Feedback.TRANSPORT))
+        assert abs(grasping) < 0.15, f"{grasping:.3f} N along the gripper while the box still rests on the table"
+        assert abs(carrying - grasping) == pytest.approx(weight, abs=0.12), \
+            f"{carrying - grasping:+.3f} N along the gripper once the {weight:.3f} N box is lifted"
         wrench.stop()
