@@ -3,8 +3,11 @@
 Each stream rides along the sim node's publication stops (like ``/odom``): it is published at the
 first stop at or after it falls due, stamped with that sim time, and only while someone subscribes
 (a stream faster than the stops, set by ``clock_rate`` and ``joint_state_rate``, is published at every
-stop). The readings come from :mod:`sim_bridge.sensors`; the battery is drained in the control step
-(:class:`sim_bridge.battery.BatteryMeter`) and only reported here.
+stop). The readings come from :mod:`sim_bridge.sensors`, each computed once per stop and only for a
+stream that is due and subscribed; the battery is drained in the control step
+(:class:`sim_bridge.battery.BatteryMeter`) and only reported here. Like /joint_states, every stream is
+serialized once (:mod:`nodes.serialized`) and only its numbers are written at each publish; a template
+that fails its self-check falls back to building the same message the ordinary way.
 
 Topics: ``/imu`` (sensor_msgs/Imu), ``/<foot>/wrench`` (geometry_msgs/WrenchStamped in the sole
 frame), ``/sim/hand_sensors`` (raw wrist F/T for ``/hand_sensors``), ``/sim/battery``
@@ -14,22 +17,39 @@ frame), ``/sim/hand_sensors`` (raw wrist F/T for ``/hand_sensors``), ``/sim/batt
 
 from __future__ import annotations
 
+import functools
 import math
 import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, TypeVar
 
-from geometry_msgs.msg import TransformStamped, Wrench as WrenchMsg, WrenchStamped
+import numpy as np
+from geometry_msgs.msg import TransformStamped, WrenchStamped
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import BatteryState, Imu
 from tf2_msgs.msg import TFMessage
 
-from nodes.conversions import set_time
 from nodes.parameters import ParameterSpec, declare
+from nodes.serialized import (
+    BatteryStateTemplate,
+    HandSensorsTemplate,
+    ImuTemplate,
+    TemplateError,
+    WrenchStampedTemplate,
+    battery_message,
+    hand_sensors_message,
+    imu_message,
+    stamp_of,
+    wrench_stamped_message,
+)
 from sim_bridge import Simulation
 from sim_bridge.battery import Battery, BatteryConfig
-from sim_bridge.sensors import ImuNoise, SensorSuite, Wrench, WristNoise
+from sim_bridge.sensors import ImuNoise, SensorSuite, WristNoise
 from sim_interfaces.msg import BatteryConfig as BatteryConfigMsg, HandSensors
 from sim_interfaces.srv import SetBatteryLevel
 
@@ -61,11 +81,17 @@ RATE_PARAMETERS = (
                   "/joint_states)", 1.0, 500.0),
 )
 
+T = TypeVar("T")
 
-def _set_wrench(msg: WrenchMsg, wrench: Wrench) -> None:
-    f, t = wrench.force.tolist(), wrench.torque.tolist()
-    msg.force.x, msg.force.y, msg.force.z = f[0], f[1], f[2]
-    msg.torque.x, msg.torque.y, msg.torque.z = t[0], t[1], t[2]
+
+@dataclass(frozen=True)
+class _Foot:
+    """A sole's wrench stream: its index in the layout, frame, publisher and template (None: publish messages)."""
+
+    index: int
+    frame: str
+    publisher: Publisher
+    template: WrenchStampedTemplate | None
 
 
 class SensorStreams:
@@ -90,31 +116,41 @@ class SensorStreams:
         self._names = {spec.name for spec in specs}
         self._imu_period = self._wrench_period = 0.0
         self._covariances = (_diagonal(1e-6), _diagonal(1e-8), _diagonal(1e-6))
+        self._imu_template: ImuTemplate | None = None
         self._apply_noise()
         self._next_imu = self._next_wrench = 0.0
         qos = QoSProfile(depth=100)
         self._imu_pub = node.create_publisher(Imu, "/imu", qos) if layout.imu is not None else None
-        self._imu_msg = Imu()
+        self._imu_frame = layout.imu.frame if layout.imu is not None else ""
         if layout.imu is not None:
-            self._imu_msg.header.frame_id = layout.imu.frame
-        self._feet = [(foot.name, node.create_publisher(WrenchStamped, f"/{foot.name}/wrench", qos), WrenchStamped())
-                      for foot in layout.feet]
-        for (_, _, msg), foot in zip(self._feet, layout.feet, strict=True):
-            msg.header.frame_id = foot.frame
+            self._imu_template = self._template(lambda: ImuTemplate(self._imu_frame, self._covariances), "/imu")
+        self._feet = [_Foot(k, foot.frame, node.create_publisher(WrenchStamped, f"/{foot.name}/wrench", qos),
+                            self._template(functools.partial(WrenchStampedTemplate, foot.frame), f"/{foot.name}/wrench"))
+                      for k, foot in enumerate(layout.feet)]
+        self._hand_names = [w.name for w in layout.wrists]
+        self._hand_frames = [w.frame for w in layout.wrists]
         self._hand_pub = node.create_publisher(HandSensors, HAND_SENSORS_TOPIC, qos) if layout.wrists else None
-        self._hand_msg = HandSensors(names=[w.name for w in layout.wrists], frame_ids=[w.frame for w in layout.wrists],
-                                     wrenches=[WrenchMsg() for _ in layout.wrists])
+        self._hand_template = (self._template(lambda: HandSensorsTemplate(self._hand_names, self._hand_frames),
+                                              HAND_SENSORS_TOPIC) if layout.wrists else None)
+        n = len(layout.wrists)  # the hands' readings, gathered here at each publish
+        self._hand_wrenches, self._hand_linear, self._hand_angular = np.zeros((n, 6)), np.zeros(n), np.zeros(n)
+        self._hand_contact = np.zeros(n, dtype=bool)
         self._publish_static_frames()
         if battery is not None:
             self._battery_pub = node.create_publisher(BatteryState, BATTERY_TOPIC, qos)
-            self._battery_msg = BatteryState(power_supply_status=BatteryState.POWER_SUPPLY_STATUS_DISCHARGING,
-                                             power_supply_health=BatteryState.POWER_SUPPLY_HEALTH_GOOD,
-                                             power_supply_technology=BatteryState.POWER_SUPPLY_TECHNOLOGY_LION,
-                                             present=True, location="torso", serial_number="sim")
+            self._battery_template = self._template(BatteryStateTemplate, BATTERY_TOPIC)
             group = MutuallyExclusiveCallbackGroup()
             node.create_subscription(BatteryConfigMsg, BATTERY_CONFIG_TOPIC, self._on_battery_config, LATCHED,
                                      callback_group=group)
             node.create_service(SetBatteryLevel, "~/set_battery_level", self._on_set_level, callback_group=group)
+
+    def _template(self, make: Callable[[], T], topic: str) -> T | None:
+        """A stream's serialized template, or None (then it publishes ordinary messages) if it cannot be made."""
+        try:
+            return make()
+        except TemplateError as error:
+            self._node.get_logger().warning(f"{error}; publishing {topic} the ordinary way")
+            return None
 
     # ----- parameters ----------------------------------------------------------------------
     def _apply_noise(self) -> None:
@@ -131,6 +167,8 @@ class SensorStreams:
             self._covariances = (_diagonal(1e-6),  # orientation: ground truth from the simulation
                                  _diagonal(max(noise.gyro_noise ** 2 + noise.gyro_bias ** 2, 1e-8)),
                                  _diagonal(max(noise.accel_noise ** 2 + noise.accel_bias ** 2, 1e-6)))
+            if self._imu_template is not None:
+                self._imu_template.set_covariances(self._covariances)
         if self._sim.robot.sensors.wrists:
             self.suite.set_wrist_noise(WristNoise(
                 float(value("wrist_ft.force_bias").value), float(value("wrist_ft.torque_bias").value),
@@ -152,58 +190,69 @@ class SensorStreams:
                 self._publish_imu(now)
         if now + eps >= self._next_wrench:
             self._next_wrench = _next_due(self._next_wrench, self._wrench_period, now)
-            data = self._sim.data
-            for name, publisher, msg in self._feet:
-                if publisher.get_subscription_count() > 0:
-                    set_time(msg.header.stamp, now)
-                    _set_wrench(msg.wrench, self.suite.foot_wrench(data, name))
-                    publisher.publish(msg)
+            feet = [foot for foot in self._feet if foot.publisher.get_subscription_count() > 0]
+            if feet:
+                self._publish_feet(now, feet)
             if self._hand_pub is not None and self._hand_pub.get_subscription_count() > 0:
                 self._publish_hands(now)
 
     def _publish_imu(self, now: float) -> None:
         assert self._imu_pub is not None
         reading = self.suite.imu(self._sim.data)
-        msg = self._imu_msg
-        set_time(msg.header.stamp, now)
-        q, w, a = reading.orientation_wxyz.tolist(), reading.angular_velocity.tolist(), reading.linear_acceleration.tolist()
-        msg.orientation.w, msg.orientation.x, msg.orientation.y, msg.orientation.z = q[0], q[1], q[2], q[3]
-        msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = w[0], w[1], w[2]
-        msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z = a[0], a[1], a[2]
-        msg.orientation_covariance, msg.angular_velocity_covariance, msg.linear_acceleration_covariance = self._covariances
-        self._imu_pub.publish(msg)
+        payload: Any
+        if self._imu_template is not None:
+            payload = self._imu_template.serialize(now, reading.orientation_wxyz, reading.angular_velocity,
+                                                   reading.linear_acceleration)
+        else:
+            payload = imu_message(self._imu_frame, stamp_of(now), reading.orientation_wxyz, reading.angular_velocity,
+                                  reading.linear_acceleration, self._covariances)
+        self._imu_pub.publish(payload)
+
+    def _publish_feet(self, now: float, feet: list[_Foot]) -> None:
+        """The subscribed soles' wrenches, from one pass over the contacts."""
+        wrenches = self.suite.foot_wrenches(self._sim.data)
+        for foot in feet:
+            wrench = wrenches[foot.index]
+            if foot.template is not None:
+                foot.publisher.publish(foot.template.serialize(now, wrench.force, wrench.torque))
+            else:
+                foot.publisher.publish(wrench_stamped_message(foot.frame, stamp_of(now), wrench.force, wrench.torque))
 
     def _publish_hands(self, now: float) -> None:
         assert self._hand_pub is not None
         data = self._sim.data
-        msg = self._hand_msg
-        set_time(msg.header.stamp, now)
-        linear, angular, contact = [], [], []
-        for name, wrench_msg in zip(msg.names, msg.wrenches, strict=True):
-            _set_wrench(wrench_msg, self.suite.wrist_wrench(data, name))
+        for k, name in enumerate(self._hand_names):
+            wrench = self.suite.wrist_wrench(data, name)
             hand = self.suite.hand_state(data, name)
-            linear.append(hand.linear_speed)
-            angular.append(hand.angular_speed)
-            contact.append(hand.in_contact)
-        msg.linear_speeds, msg.angular_speeds, msg.in_contact = linear, angular, contact
-        self._hand_pub.publish(msg)
+            self._hand_wrenches[k, :3] = wrench.force
+            self._hand_wrenches[k, 3:] = wrench.torque
+            self._hand_linear[k], self._hand_angular[k], self._hand_contact[k] = (
+                hand.linear_speed, hand.angular_speed, hand.in_contact)
+        payload: Any
+        if self._hand_template is not None:
+            payload = self._hand_template.serialize(now, self._hand_wrenches, self._hand_linear, self._hand_angular,
+                                                    self._hand_contact)
+        else:
+            payload = hand_sensors_message(self._hand_names, self._hand_frames, stamp_of(now), self._hand_wrenches,
+                                           self._hand_linear, self._hand_angular, self._hand_contact)
+        self._hand_pub.publish(payload)
 
     def publish_battery(self, now: float) -> None:
         """Under the lock, at state_rate: /sim/battery while someone (``/power``) subscribes."""
         battery = self.battery
         if battery is None or self._battery_pub.get_subscription_count() == 0:
             return
-        msg = self._battery_msg
-        set_time(msg.header.stamp, now)
         voltage = battery.voltage_v
         capacity_ah = battery.config.capacity_wh / voltage if voltage > 0 else math.nan
-        msg.voltage = voltage
-        msg.current = -battery.power_w / voltage  # negative while discharging (REP: BatteryState)
-        msg.charge = battery.energy_wh / voltage
-        msg.capacity = capacity_ah
-        msg.design_capacity = capacity_ah
-        msg.percentage = battery.level_percent / 100.0  # 0..1, as BatteryState defines it
-        self._battery_pub.publish(msg)
+        values = (voltage,
+                  -battery.power_w / voltage,  # current: negative while discharging (REP: BatteryState)
+                  battery.energy_wh / voltage,  # charge [Ah]
+                  capacity_ah, capacity_ah,  # capacity, design capacity [Ah]
+                  battery.level_percent / 100.0)  # percentage: 0..1, as BatteryState defines it
+        template = self._battery_template
+        payload: Any = (template.serialize(now, *values) if template is not None
+                        else battery_message(stamp_of(now), *values))
+        self._battery_pub.publish(payload)
 
     def _publish_static_frames(self) -> None:
         """The sensor frames (fixed in their bodies) on /tf_static; a writer of its own, latched."""

@@ -119,11 +119,14 @@ class SensorSuite:
         imu = layout.imu
         if imu is not None:
             self._imu_adr = tuple(self._sensor_adr(name) for name in (imu.quat_sensor, imu.gyro_sensor, imu.accel_sensor))
-        self._foot_geoms = {foot.name: model.geom(foot.geom).id for foot in layout.feet}
-        self._foot_sites = {foot.name: model.site(foot.frame).id for foot in layout.feet}
+        self._foot_index = {foot.name: k for k, foot in enumerate(layout.feet)}
+        self._foot_geom_ids = np.array([model.geom(foot.geom).id for foot in layout.feet], dtype=int)
+        self._foot_site_ids = [model.site(foot.frame).id for foot in layout.feet]
         self._wrist_adr = {w.name: (self._sensor_adr(w.force_sensor), self._sensor_adr(w.torque_sensor)) for w in layout.wrists}
         self._wrist_sites = {w.name: model.site(w.frame).id for w in layout.wrists}
-        self._hand_bodies = {w.name: self._subtree(model.body(w.body).id) for w in layout.wrists}
+        # Per hand, which geoms belong to it (a geom of any body in the hand's subtree): a contact's look-up.
+        self._hand_geoms = {w.name: np.isin(model.geom_bodyid, self._subtree(model.body(w.body).id))
+                            for w in layout.wrists}
         self.set_imu_noise(self._imu_noise)
         self.set_wrist_noise(self._wrist_noise)
 
@@ -199,31 +202,38 @@ class SensorSuite:
             linear = linear + self._imu_rng.normal(0.0, noise.accel_noise, 3)
         return ImuReading(values[quat:quat + 4].copy(), np.array(angular), np.array(linear))
 
-    def foot_wrench(self, data: mujoco.MjData, name: str) -> Wrench:
-        """The wrench the floor (or anything touching the sole) exerts on a sole, in the sole frame, about its origin."""
+    def foot_wrenches(self, data: mujoco.MjData) -> tuple[Wrench, ...]:
+        """Every sole's wrench (in the layout's order): what the floor, or anything touching it, exerts on the
+        sole, in the sole frame, about its origin. One pass over the contacts for all the feet."""
         model = self._model
-        geom = self._foot_geoms[name]
-        site = self._foot_sites[name]
-        force = np.zeros(3)
-        torque = np.zeros(3)
         ncon = int(data.ncon)
-        if ncon:
-            pairs = data.contact.geom[:ncon]
-            indices = np.flatnonzero((pairs[:, 0] == geom) | (pairs[:, 1] == geom))
-            origin = data.site_xpos[site]
-            local = np.empty(6)
-            for i in indices.tolist():
-                contact = data.contact[i]
-                mujoco.mj_contactForce(model, data, i, local)
-                frame = contact.frame.reshape(3, 3)  # rows: normal (geom1 -> geom2), tangents
-                on_geom2 = frame.T @ local[:3]
-                moment2 = frame.T @ local[3:]
-                sign = 1.0 if int(contact.geom[1]) == geom else -1.0
-                f = sign * on_geom2
-                force += f
-                torque += np.cross(contact.pos - origin, f) + sign * moment2
-        rotation = data.site_xmat[site].reshape(3, 3)
-        return Wrench(rotation.T @ force, rotation.T @ torque)
+        feet = self._foot_geom_ids
+        if not ncon or not len(feet):
+            return tuple(Wrench(np.zeros(3), np.zeros(3)) for _ in self._foot_site_ids)
+        contact = data.contact
+        pairs = contact.geom[:ncon]
+        # signs[i, k]: +1 when contact i's geom2 is foot k's sole (MuJoCo's force acts on geom2), -1 for geom1.
+        signs = (pairs[:, 1:2] == feet).astype(float) - (pairs[:, 0:1] == feet)
+        rows = np.flatnonzero(signs.any(axis=1))
+        n = len(rows)
+        local = np.empty((n, 6))  # each contact's force and torque in its contact frame (normal, tangents)
+        for j, i in enumerate(rows.tolist()):
+            mujoco.mj_contactForce(model, data, i, local[j])
+        frames = contact.frame[rows].reshape(n, 3, 3)  # rows of each frame: normal (geom1 -> geom2), tangents
+        on_geom2 = np.matmul(local.reshape(n, 2, 3), frames)  # (n, 2, 3): frame.T @ force, frame.T @ torque
+        positions = contact.pos[rows]
+        wrenches = []
+        for k, site in enumerate(self._foot_site_ids):
+            sign = signs[rows, k:k + 1]
+            f = sign * on_geom2[:, 0]
+            torque = _cross(positions - data.site_xpos[site], f) + sign * on_geom2[:, 1]
+            rotation = data.site_xmat[site].reshape(3, 3)
+            wrenches.append(Wrench(rotation.T @ f.sum(axis=0), rotation.T @ torque.sum(axis=0)))
+        return tuple(wrenches)
+
+    def foot_wrench(self, data: mujoco.MjData, name: str) -> Wrench:
+        """One sole's wrench (see :meth:`foot_wrenches`; reading several feet, call that once instead)."""
+        return self.foot_wrenches(data)[self._foot_index[name]]
 
     def wrist_wrench(self, data: mujoco.MjData, name: str) -> Wrench:
         """A wrist sensor's reading in its frame: the true wrench + bias + drift + noise (not calibrated)."""
@@ -242,11 +252,19 @@ class SensorSuite:
 
     def hand_state(self, data: mujoco.MjData, name: str) -> HandState:
         """How fast a wrist sensor's hand moves and whether any of its bodies touches something."""
-        velocity = np.empty(6)
+        velocity = np.empty(6)  # world frame: angular, then linear
         mujoco.mj_objectVelocity(self._model, data, mujoco.mjtObj.mjOBJ_SITE, self._wrist_sites[name], velocity, 0)
+        angular, linear = velocity[:3], velocity[3:]
         ncon = int(data.ncon)
-        touching = False
-        if ncon:
-            bodies = self._model.geom_bodyid[data.contact.geom[:ncon]]
-            touching = bool(np.isin(bodies, self._hand_bodies[name]).any())
-        return HandState(float(np.linalg.norm(velocity[3:])), float(np.linalg.norm(velocity[:3])), touching)
+        touching = bool(ncon) and bool(self._hand_geoms[name][data.contact.geom[:ncon]].any())
+        # sqrt(v . v) is what np.linalg.norm computes for a vector, without its overhead.
+        return HandState(math.sqrt(float(linear.dot(linear))), math.sqrt(float(angular.dot(angular))), touching)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross product of two (n, 3) arrays: the products np.cross forms, without its overhead."""
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
