@@ -9,6 +9,9 @@ Changes against the URDF as shipped:
 - a floor, a light, sole/hand/IMU sites, an IMU and wrist force/torque sensors (:mod:`robot_models.sensors`),
   joint armature and damping, position servos with gains
   that hold a stand (hip/knee 500, hip yaw 350, ankle 300, kd = 0.03 kp; waist and arms 150/3);
+- a head camera on a tilt mount where the real G1's D435 sits (see :func:`_add_head_camera`), and what
+  a camera needs to see (:func:`robot_models.cameras.prepare_scene_for_cameras`: sky, floor texture,
+  a directional light, a 1280 x 720 offscreen buffer);
 - physics: 2 ms step, implicitfast, elliptic friction cone with impratio 10;
 - a ``stand`` keyframe in a slight crouch with both soles flat on the floor.
 """
@@ -21,6 +24,7 @@ import mujoco
 import numpy as np
 
 from robot_models import g1_constants as names
+from robot_models.cameras import OPTICAL_IN_BODY_QUAT, CameraLayout, add_optical_camera, prepare_scene_for_cameras
 from robot_models.sensors import BatteryLayout, FootLayout, ImuLayout, SensorLayout, WristLayout, add_sensors
 from robot_models.spec import (
     ArmScene,
@@ -64,6 +68,30 @@ SENSORS = SensorLayout(
             WristLayout("right_wrist", "right_arm", names.RIGHT_WRIST_FT_SITE, names.RIGHT_HAND_BODY)),
     # The G1's 13-cell Li-ion pack: 9 Ah at 48 V nominal, 54.6 V full; ~60 W for its computers at rest.
     battery=BatteryLayout(capacity_wh=432.0, idle_power_w=60.0, voltage_full_v=54.6, voltage_empty_v=42.0),
+)
+
+
+# The head camera's tilt mount: a small servo (a 50 g camera balanced on its axis, a geared motor's
+# reflected inertia, critically damped: settles in ~0.15 s, 2 N m at most).
+HEAD_CAMERA_MASS_KG = 0.05
+HEAD_CAMERA_TILT_KP = 10.0  # [N m/rad]
+HEAD_CAMERA_TILT_KV = 0.4  # [N m s/rad]
+HEAD_CAMERA_TILT_FORCE_LIMIT = 2.0  # [N m]
+HEAD_CAMERA_TILT_ARMATURE = 0.005  # [kg m^2]
+HEAD_CAMERA_TILT_DAMPING = 0.05  # [N m s/rad]
+
+CAMERAS = (
+    CameraLayout(
+        name=names.HEAD_CAMERA,
+        mj_camera=names.HEAD_CAMERA,
+        optical_frame=names.HEAD_CAMERA_OPTICAL_FRAME,
+        fovy_deg=42.5,  # the D435's colour camera: 69 x 42.5 deg
+        tilt_joint=names.HEAD_CAMERA_TILT_JOINT,
+        # Up to 0.5 rad up (the head's front cover); down to 0.9 rad, past the real D435's fixed 0.83 rad
+        # (the floor from ~0.5 m ahead of the feet).
+        tilt_range_rad=(-0.5, 0.9),
+        default_tilt_rad=0.0,  # straight ahead
+    ),
 )
 
 
@@ -111,6 +139,64 @@ def _add_body_shell(spec: mujoco.MjSpec) -> None:
             geom.size = [radius, 0.0, 0.0]
 
 
+def _remove_point_mass(body: mujoco.MjsBody, mass: float, position: np.ndarray, inertia: np.ndarray) -> None:
+    """Take a rigid part (``mass`` [kg], centre of mass ``position`` and inertia (3, 3) about it, in the
+    body's frame) out of a body's explicit inertial, so that body + part weigh and turn as the body did."""
+    full = np.asarray(body.fullinertia, dtype=float)
+    if not body.explicitinertial or np.isnan(full[0]) or np.any(np.asarray(body.iquat) != [1.0, 0.0, 0.0, 0.0]):
+        raise ValueError(f"body {body.name!r}: expected an explicit full inertia in the body's axes")
+    inertia_body = np.array([[full[0], full[3], full[4]], [full[3], full[1], full[5]], [full[4], full[5], full[2]]])
+    com = np.asarray(body.ipos, dtype=float)
+    rest_mass = float(body.mass) - mass
+    rest_com = (float(body.mass) * com - mass * position) / rest_mass
+
+    def shift(d: np.ndarray) -> np.ndarray:  # parallel-axis term of a unit mass at offset d
+        return np.dot(d, d) * np.eye(3) - np.outer(d, d)
+
+    rest = inertia_body - inertia - mass * shift(position - com) - rest_mass * shift(rest_com - com)
+    if np.any(np.linalg.eigvalsh(rest) <= 0.0):
+        raise ValueError(f"body {body.name!r} is too light to carry {mass} kg out of it")
+    body.mass = rest_mass
+    body.ipos = rest_com.tolist()
+    body.fullinertia = [rest[0, 0], rest[1, 1], rest[2, 2], rest[0, 1], rest[0, 2], rest[1, 2]]
+
+
+def _add_head_camera(spec: mujoco.MjSpec, layout: CameraLayout) -> None:
+    """The head camera on its tilt mount, a child of the torso (the G1 has no neck).
+
+    The mount's pivot is the URDF's ``d435_link`` origin (the real camera's place behind the head's
+    front cover); at tilt 0 its axes are the torso's (x forward, y left, z up), and the hinge turns it
+    about y (+ = looking down) within the layout's range, held by a position servo. Its 50 g sit on the
+    hinge axis and are taken out of the URDF's head link (whose mass holds the real camera already), so
+    the robot's mass, centre of mass and inertia at tilt 0 are those of the URDF. Its housing is visual
+    only (it collides with nothing). The optical frame is a child body at the lens.
+    """
+    if layout.tilt_joint is None:
+        raise ValueError(f"camera {layout.name!r}: the G1's head camera needs a tilt joint")
+    pivot = np.asarray(spec.body(names.D435_BODY).pos, dtype=float)
+    mount = spec.body(names.TORSO_BODY).add_body(name=names.HEAD_CAMERA_LINK, pos=pivot.tolist())
+    half = np.asarray(names.HEAD_CAMERA_HOUSING_HALF_SIZE)
+    inertia = HEAD_CAMERA_MASS_KG / 3.0 * np.array([half[1] ** 2 + half[2] ** 2, half[0] ** 2 + half[2] ** 2,
+                                                    half[0] ** 2 + half[1] ** 2])  # a solid box
+    mount.explicitinertial = True
+    mount.mass = HEAD_CAMERA_MASS_KG
+    mount.ipos = [0.0, 0.0, 0.0]
+    mount.inertia = inertia.tolist()
+    low, high = layout.tilt_range_rad
+    mount.add_joint(
+        name=layout.tilt_joint, type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0.0, 1.0, 0.0],
+        limited=mujoco.mjtLimited.mjLIMITED_TRUE, range=[low, high],
+        actfrclimited=mujoco.mjtLimited.mjLIMITED_TRUE,
+        actfrcrange=[-HEAD_CAMERA_TILT_FORCE_LIMIT, HEAD_CAMERA_TILT_FORCE_LIMIT],
+        armature=HEAD_CAMERA_TILT_ARMATURE, damping=[HEAD_CAMERA_TILT_DAMPING, 0.0, 0.0],
+    )
+    mount.add_geom(name=names.HEAD_CAMERA_GEOM, type=mujoco.mjtGeom.mjGEOM_BOX, size=half.tolist(), contype=0,
+                   conaffinity=0, group=1, mass=0.0, rgba=[0.12, 0.12, 0.12, 1.0])
+    add_optical_camera(mount, layout, pos=names.HEAD_CAMERA_LENS_IN_MOUNT, quat=OPTICAL_IN_BODY_QUAT)
+    head = spec.body(names.HEAD_LINK_BODY)
+    _remove_point_mass(head, HEAD_CAMERA_MASS_KG, pivot - np.asarray(head.pos, dtype=float), np.diag(inertia))
+
+
 def build_spec() -> mujoco.MjSpec:
     """The G1 scene as an editable spec (not compiled)."""
     spec = mujoco.MjSpec.from_string(_restore_floating_base(read_urdf(names.URDF_RELATIVE_PATH, keep_visuals=True)))
@@ -153,9 +239,10 @@ def build_spec() -> mujoco.MjSpec:
     add_sensors(spec, SENSORS)
 
     world = spec.worldbody
+    floor_material = prepare_scene_for_cameras(spec)
     world.add_geom(
-        name=names.FLOOR_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05],
-        friction=[1.0, 0.02, 0.001], rgba=[0.55, 0.6, 0.65, 1.0], contype=1, conaffinity=1 | names.SHELL_CONTYPE,
+        name=names.FLOOR_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05], material=floor_material,
+        friction=[1.0, 0.02, 0.001], contype=1, conaffinity=1 | names.SHELL_CONTYPE,
     )
     world.add_light(pos=[0, 0, 4], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
     world.add_camera(name="track", pos=[2.2, -2.2, 1.4], xyaxes=[0.707, 0.707, 0, -0.25, 0.25, 0.93],
@@ -165,9 +252,13 @@ def build_spec() -> mujoco.MjSpec:
         if joint.type == mujoco.mjtJoint.mjJNT_HINGE:
             joint.armature = 0.01
             joint.damping = [0.5, 0.0, 0.0]
-    for joint in names.ALL_JOINTS:
+    for joint in names.BODY_JOINTS:
         kp, kv = _gain_for(joint)
         add_position_actuator(spec, joint, kp=kp, kv=kv, force_limit=None)
+    (head_camera,) = CAMERAS
+    _add_head_camera(spec, head_camera)  # after the loops above: the mount has armature, damping and gains of its own
+    add_position_actuator(spec, names.HEAD_CAMERA_TILT_JOINT, kp=HEAD_CAMERA_TILT_KP, kv=HEAD_CAMERA_TILT_KV,
+                          force_limit=HEAD_CAMERA_TILT_FORCE_LIMIT)
     return spec
 
 
@@ -185,6 +276,9 @@ def _stand_qpos(model: mujoco.MjModel) -> np.ndarray:
         sign = 1.0 if side == "left" else -1.0
         qpos[model.joint(f"{side}_shoulder_roll_joint").qposadr[0]] = sign * STAND_ARM_POSE["shoulder_roll"]
         qpos[model.joint(f"{side}_elbow_joint").qposadr[0]] = STAND_ARM_POSE["elbow"]
+    for camera in CAMERAS:
+        if camera.tilt_joint is not None:
+            qpos[model.joint(camera.tilt_joint).qposadr[0]] = camera.default_tilt_rad
     data.qpos[:] = qpos
     mujoco.mj_kinematics(model, data)
     sole_z = min(data.site(names.LEFT_SOLE_SITE).xpos[2], data.site(names.RIGHT_SOLE_SITE).xpos[2])
@@ -228,6 +322,7 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
             "waist": names.WAIST_JOINTS,
             "left_arm": names.LEFT_ARM_JOINTS,
             "right_arm": names.RIGHT_ARM_JOINTS,
+            "head": names.HEAD_JOINTS,
         },
         actuated_joints=names.ALL_JOINTS,
         end_effector_sites={"left_arm": names.LEFT_HAND_SITE, "right_arm": names.RIGHT_HAND_SITE},
@@ -244,4 +339,5 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
         arm_scene=_arm_scene(model),
         walking=WALKING,
         sensors=SENSORS,
+        cameras=CAMERAS,
     )

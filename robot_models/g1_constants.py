@@ -35,7 +35,10 @@ LEFT_ARM_JOINTS: Final = (
     "left_wrist_yaw_joint",
 )
 RIGHT_ARM_JOINTS: Final = tuple(name.replace("left_", "right_") for name in LEFT_ARM_JOINTS)
-ALL_JOINTS: Final = LEFT_LEG_JOINTS + RIGHT_LEG_JOINTS + WAIST_JOINTS + LEFT_ARM_JOINTS + RIGHT_ARM_JOINTS
+BODY_JOINTS: Final = LEFT_LEG_JOINTS + RIGHT_LEG_JOINTS + WAIST_JOINTS + LEFT_ARM_JOINTS + RIGHT_ARM_JOINTS
+HEAD_CAMERA_TILT_JOINT: Final = "head_camera_tilt_joint"  # the head camera's tilt mount (not in the URDF)
+HEAD_JOINTS: Final = (HEAD_CAMERA_TILT_JOINT,)
+ALL_JOINTS: Final = BODY_JOINTS + HEAD_JOINTS  # every actuated joint, in actuator order
 
 LEFT_FOOT_BODY: Final = "left_ankle_roll_link"
 RIGHT_FOOT_BODY: Final = "right_ankle_roll_link"
@@ -85,6 +88,20 @@ IMU_SITE_IN_PELVIS: Final = (0.04525, 0.0, -0.08339)
 IMU_FRAME: Final = "imu_in_pelvis"  # the URDF's link name of the pelvis IMU (a site here)
 LEFT_WRIST_FT_SITE: Final = "left_wrist_ft"  # force/torque sensors between each hand and its arm
 RIGHT_WRIST_FT_SITE: Final = "right_wrist_ft"
+
+# Head camera on a tilt mount (the G1 has no neck). The mount's pivot is where the URDF puts the real
+# G1's RealSense D435 (``d435_joint``: torso_link (0.0576, 0.0175, 0.4299), pitched 0.83 rad down,
+# behind the head's front cover); the hinge pitches about the mount's y axis, + = looking down, 0 =
+# level with the torso. The lens (the optical frame's origin) is at the front face of a 25 mm deep
+# camera body centred on the pivot.
+HEAD_CAMERA: Final = "head_camera"  # ROS name (topics /head_camera/...) and the MuJoCo camera's name
+HEAD_CAMERA_LINK: Final = "head_camera_link"
+HEAD_CAMERA_OPTICAL_FRAME: Final = "head_camera_optical_frame"
+HEAD_CAMERA_GEOM: Final = "head_camera_housing"
+D435_BODY: Final = "d435_link"  # the URDF's (jointless) frame of the real camera; the pivot's position is read from it
+HEAD_LINK_BODY: Final = "head_link"  # the URDF's head (fused into torso_link); the mount's mass is taken out of it
+HEAD_CAMERA_LENS_IN_MOUNT: Final = (0.0125, 0.0, 0.0)
+HEAD_CAMERA_HOUSING_HALF_SIZE: Final = (0.0125, 0.045, 0.0125)  # a D435: 90 x 25 x 25 mm
 
 # Scenes. "open": the robot on an empty floor. "course": a few static boxes to walk around,
 # as (name, centre x, centre y, half size x, half size y, height) [m].

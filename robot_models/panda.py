@@ -8,7 +8,10 @@ Changes against the URDF as shipped:
 - a table whose top is the plane z = 0 under the arm's base, a floor, a light, three 4 cm boxes;
 - contact settings that hold a friction grasp: elliptic cone, impratio 10, condim 4 and a stiff
   ``solref`` on finger pads and boxes;
-- a ``home`` keyframe with the fingers open and the boxes on the table.
+- a ``home`` keyframe with the fingers open and the boxes on the table;
+- a fixed scene camera in front of the table looking at the boxes, and what a camera needs to see
+  (:func:`robot_models.cameras.prepare_scene_for_cameras`: sky, floor texture, a directional light,
+  a 1280 x 720 offscreen buffer).
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import mujoco
 import numpy as np
 
 from robot_models import panda_constants as names
+from robot_models.cameras import CameraLayout, add_optical_camera, prepare_scene_for_cameras
 from robot_models.sensors import SensorLayout, WristLayout, add_sensors
 from robot_models.spec import (
     ArmScene,
@@ -37,8 +41,26 @@ FINGER_KV = 50.0
 FINGER_FORCE_LIMIT_N = 70.0
 GRASP = GraspLimits(max_force_n=FINGER_FORCE_LIMIT_N, default_force_n=20.0)
 SENSORS = SensorLayout(wrists=(WristLayout("wrist", "arm", names.WRIST_FT_SITE, names.HAND_BODY),))
+CAMERAS = (
+    CameraLayout(name=names.SCENE_CAMERA, mj_camera=names.SCENE_CAMERA, optical_frame=names.SCENE_CAMERA_OPTICAL_FRAME,
+                 fovy_deg=45.0),
+)
 CONTACT_SOLREF = [0.004, 1.0]
 GRASP_FRICTION = [1.0, 0.02, 0.001]
+
+
+def _looking_at(position: tuple[float, float, float], target: tuple[float, float, float]) -> tuple[float, float, float, float]:
+    """Orientation (w, x, y, z) of an optical frame at ``position`` whose z axis points at ``target``
+    and whose x axis (image right) is level."""
+    forward = np.subtract(target, position)
+    forward /= np.linalg.norm(forward)
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    down = np.cross(forward, right)
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, np.column_stack([right, down, forward]).ravel())
+    w, x, y, z = (float(v) for v in quat)
+    return w, x, y, z
 
 
 def build_spec() -> mujoco.MjSpec:
@@ -71,13 +93,17 @@ def build_spec() -> mujoco.MjSpec:
     add_sensors(spec, SENSORS)
 
     world = spec.worldbody
+    floor_material = prepare_scene_for_cameras(spec)
     world.add_geom(name=names.FLOOR_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05],
-                   pos=[0, 0, -2 * names.TABLE_HALF_SIZE[2]], rgba=[0.55, 0.6, 0.65, 1.0])
+                   pos=[0, 0, -2 * names.TABLE_HALF_SIZE[2]], material=floor_material)
     table = world.add_body(name=names.TABLE_BODY, pos=list(names.TABLE_CENTER))
     table.add_geom(name=names.TABLE_GEOM, type=mujoco.mjtGeom.mjGEOM_BOX, size=list(names.TABLE_HALF_SIZE),
                    rgba=[0.55, 0.4, 0.25, 1.0], friction=GRASP_FRICTION)
     world.add_light(pos=[0.5, 0, 2.5], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
     world.add_camera(name="track", pos=[1.6, -1.0, 0.9], xyaxes=[0.53, 0.85, 0, -0.35, 0.22, 0.91])
+    (scene_camera,) = CAMERAS
+    add_optical_camera(world, scene_camera, pos=names.SCENE_CAMERA_POSITION,
+                       quat=_looking_at(names.SCENE_CAMERA_POSITION, names.SCENE_CAMERA_TARGET))
     for box_name, position, color in zip(names.BOX_NAMES, names.BOX_HOME_POSITIONS, names.BOX_COLORS, strict=True):
         box = world.add_body(name=box_name, pos=list(position))
         box.add_freejoint(name=box_name)
@@ -163,4 +189,5 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
         arm_scene=_arm_scene(),
         grasp=GRASP,
         sensors=SENSORS,
+        cameras=CAMERAS,
     )

@@ -41,5 +41,11 @@ HOME_ARM_QPOS: Final = (0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785)
 FINGER_OPEN: Final = 0.04
 FINGER_CLOSED: Final = 0.0
 
+# A fixed scene camera in front of the table, off to the robot's right, looking down at the boxes.
+SCENE_CAMERA: Final = "scene_camera"  # ROS name (topics /scene_camera/...) and the MuJoCo camera's name
+SCENE_CAMERA_OPTICAL_FRAME: Final = "scene_camera_optical_frame"
+SCENE_CAMERA_POSITION: Final = (1.55, -0.7, 0.75)  # the lens, world frame [m]
+SCENE_CAMERA_TARGET: Final = (0.4, 0.0, 0.15)  # the point on the optical axis at the image centre, world [m]
+
 SCENES: Final = ("table",)
 DEFAULT_SCENE: Final = "table"

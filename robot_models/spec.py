@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 
 import mujoco
 
+from robot_models.cameras import CameraLayout
 from robot_models.sensors import SensorLayout
 
 
@@ -165,6 +166,7 @@ class RobotSpec:
         walking: defaults and limits of the walking skills (None for a robot that does not walk).
         grasp: defaults and limits of grasping (None for a robot without grippers).
         sensors: the IMU, sole and wrist sensors (names, frames); none by default.
+        cameras: the scene's cameras (names, optical frames, field of view, tilt mounts); none by default.
     """
 
     name: str
@@ -188,12 +190,17 @@ class RobotSpec:
     walking: WalkingLimits | None = None
     grasp: GraspLimits | None = None
     sensors: SensorLayout = field(default_factory=SensorLayout)
+    cameras: tuple[CameraLayout, ...] = ()
 
     def __post_init__(self) -> None:
         if self.arm_scene.grippers and self.grasp is None:
             raise ValueError(f"robot {self.name!r} has grippers ({', '.join(self.arm_scene.grippers)}) but no grasp limits")
         if self.walking is not None and not self.floating_base:
             raise ValueError(f"robot {self.name!r} has walking limits but no floating base")
+        for camera in self.cameras:
+            if camera.tilt_joint is not None and camera.tilt_joint not in self.actuated_joints:
+                raise ValueError(f"robot {self.name!r}: the tilt joint {camera.tilt_joint!r} of camera {camera.name!r} "
+                                 "is not an actuated joint")
 
     @property
     def physics_timestep(self) -> float:

@@ -13,8 +13,9 @@ import mujoco
 import numpy as np
 
 from robot_models import RobotSpec
+from robot_models.cameras import CameraLayout
 from sim_bridge.controller import Controller, Slot
-from sim_bridge.errors import SimulationFaultError, UnknownNameError
+from sim_bridge.errors import InvalidGoalError, SimulationFaultError, UnknownNameError
 from sim_bridge.servo import JointServo
 from sim_bridge.state import BaseState, Pose, SimState
 
@@ -38,6 +39,15 @@ class _Push:
     body_id: int
     wrench: np.ndarray  # force [N] then torque [N m], world frame, at the body's centre of mass
     steps_left: int
+
+
+@dataclass(frozen=True)
+class _TiltMount:
+    """A camera's tilt joint, resolved: its qpos address and its position servo's actuator."""
+
+    layout: CameraLayout
+    qpos_adr: int
+    actuator_id: int
 
 
 def _as_slice(indices: np.ndarray) -> slice | np.ndarray:
@@ -82,6 +92,12 @@ class Simulation:
         self._warning_counts = self.data.warning.number  # a live view of MuJoCo's counters
         self._phase = 0  # physics steps since the last control update
         self._pushes: list[_Push] = []
+        self._tilt_mounts = {
+            camera.name: _TiltMount(camera, int(self.model.joint(camera.tilt_joint).qposadr[0]),
+                                    int(self.model.actuator(camera.tilt_joint).id))
+            for camera in robot.cameras if camera.tilt_joint is not None
+        }
+        self._tilt_targets = {name: mount.layout.default_tilt_rad for name, mount in self._tilt_mounts.items()}
         self.reset(robot.default_keyframe, keep_time=False)
 
     # ----- controllers -------------------------------------------------------------------
@@ -239,6 +255,9 @@ class Simulation:
     def reset(self, keyframe: str | None = None, keep_time: bool = True) -> None:
         """Restore a keyframe exactly. Sim time keeps running forward unless ``keep_time`` is false.
 
+        Camera tilt mounts are the exception: each stands (and is held) at its commanded tilt
+        (:meth:`set_camera_tilt`), which a reset keeps.
+
         Raises:
             UnknownNameError: the keyframe does not exist (nothing is changed).
         """
@@ -248,6 +267,8 @@ class Simulation:
             raise UnknownNameError(f"unknown keyframe {name!r}; keyframes: {', '.join(self.robot.keyframes)}")
         now = self.data.time
         mujoco.mj_resetDataKeyframe(self.model, self.data, key_id)
+        for name, mount in self._tilt_mounts.items():
+            self.data.qpos[mount.qpos_adr] = self.data.ctrl[mount.actuator_id] = self._tilt_targets[name]
         self._pushes.clear()
         self.data.xfrc_applied[:] = 0.0
         if keep_time:
@@ -257,6 +278,40 @@ class Simulation:
         self._warnings_seen = int(self._warning_counts[_BADQACC])
         for controller in self._controllers.values():
             controller.reset(self.model, self.data)
+
+    # ----- camera mounts ------------------------------------------------------------------
+    def set_camera_tilt(self, camera: str, angle_rad: float) -> None:
+        """Command a camera's tilt [rad] (+ = looking down); the mount's servo turns it there under physics.
+
+        The target outlives :meth:`reset` (a reset puts the mount at it).
+
+        Raises:
+            InvalidGoalError: (a ValueError) the camera has no tilt mount, or the angle is not in its range
+                (nothing is changed); the message names the range or the cameras that tilt.
+        """
+        mount = self._tilt_mount(camera)
+        low, high = mount.layout.tilt_range_rad
+        if not (math.isfinite(angle_rad) and low <= angle_rad <= high):
+            raise InvalidGoalError(f"tilt of camera {camera!r} must be in [{low:g}, {high:g}] rad, got {angle_rad}")
+        self._tilt_targets[camera] = float(angle_rad)
+        self.servo.set_targets({str(mount.layout.tilt_joint): float(angle_rad)})
+
+    def camera_tilt(self, camera: str) -> float:
+        """A camera's measured tilt [rad] (the mount's joint angle; + = looking down).
+
+        Raises:
+            InvalidGoalError: (a ValueError) the camera has no tilt mount.
+        """
+        return float(self.data.qpos[self._tilt_mount(camera).qpos_adr])
+
+    def _tilt_mount(self, camera: str) -> _TiltMount:
+        mount = self._tilt_mounts.get(camera)
+        if mount is None:
+            tilting = ", ".join(self._tilt_mounts) or "none"
+            fixed = [c.name for c in self.robot.cameras if c.name not in self._tilt_mounts]
+            what = "is fixed (no tilt mount)" if camera in fixed else "is unknown"
+            raise InvalidGoalError(f"camera {camera!r} {what}; cameras of {self.robot.name} with a tilt mount: {tilting}")
+        return mount
 
     # ----- state -------------------------------------------------------------------------
     def base_state(self) -> BaseState:

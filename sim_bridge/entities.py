@@ -122,11 +122,12 @@ class SceneEntities:
             entities.append(Entity(name, EntityKind.OBJECT, f"free object {name}", ("object", "graspable"),
                                    movable=free is not None))
             handles[name] = _Handle(body, -1, *(free or (-1, -1)))
+        camera_frames = {camera.optical_frame for camera in robot.cameras}
         for body in range(1, model.nbody):  # fixtures: bodies welded to the world, e.g. the Panda's table
             name = model.body(body).name
             if int(model.body_parentid[body]) != 0 or int(model.body_jntnum[body]) or not name or name in handles:
                 continue
-            if body == base or name in robot.objects:
+            if body == base or name in robot.objects or name in camera_frames:  # a camera's frame is no fixture
                 continue
             entities.append(Entity(name, EntityKind.OBSTACLE, f"fixture {name}, welded to the world", ("fixture", "static"),
                                    movable=False))

@@ -48,7 +48,9 @@ from sim_bridge.locomotion.types import LocomotionMode, LocomotionStatus, Twist2
 from sim_bridge.locomotion.wbc import GRAVITY, WbcTargets, WholeBodyQP
 
 MOTOR_JOINTS = names.LEFT_LEG_JOINTS + names.RIGHT_LEG_JOINTS + names.WAIST_JOINTS
-SERVO_JOINTS = names.LEFT_ARM_JOINTS + names.RIGHT_ARM_JOINTS
+# Joints left on their position servos while walking (the QP predicts their servos' torques): the arms and
+# the head camera's tilt mount.
+SERVO_JOINTS = names.LEFT_ARM_JOINTS + names.RIGHT_ARM_JOINTS + names.HEAD_JOINTS
 
 # Walking posture: a deeper crouch than the stand keyframe gives more reach [rad].
 WALK_CROUCH = {"hip_pitch": -0.5, "knee": 1.0, "ankle_pitch": -0.5}

@@ -40,7 +40,7 @@ def test_g1_has_a_floating_base_and_real_soles():
     assert robot.floating_base
     free = model.body(robot.base_body).jntadr[0]
     assert model.jnt_type[free] == mujoco.mjtJoint.mjJNT_FREE
-    assert model.nu == 29 and len(robot.actuated_joints) == 29
+    assert model.nu == 30 and len(robot.actuated_joints) == 30, "29 body joints and the head camera's tilt mount"
     sole = model.geom("left_sole_box")
     width = 2 * sole.size[1]
     assert sole.type == mujoco.mjtGeom.mjGEOM_BOX and width >= 0.06, "a sole as wide as a real foot"
