@@ -83,3 +83,7 @@ bench-sensors: setup
 # 10 minutes, 10 client processes against the G1 (not part of `make bench`): RSS, CPU, goals, /joint_states.
 bench-soak: setup
 	$(PY) benchmarks/soak_bench.py --minutes 10 --clients 10
+
+# The G1 head camera's frames per second (320x240, 640x480, 1280x720) and what rendering at 30 Hz of sim time costs the physics.
+bench-camera: setup
+	$(PY) benchmarks/camera_bench.py

@@ -1,0 +1,109 @@
+"""Camera benchmark, core only (no ROS): what the G1's head camera costs. Prints figures, not a test.
+
+Measured on the standing G1 (its stand keyframe, no controller: the servos' own PD holds it), in
+interleaved rounds (each round measures every row once, so a busy machine slows all rows alike);
+medians of the rounds:
+
+- frames per wall second of ``CameraRenderer.render`` at 320x240, 640x480 and 1280x720 (the scene
+  as built, exposure gain 1) and at 640x480 with an exposure gain of 2 (the lookup table's cost);
+- physics steps per wall second of ``Simulation.step_physics`` alone, and with a frame rendered
+  every 1/30 s of sim time at 320x240 and 640x480: the ratio is what a subscribed 30 Hz camera
+  costs the simulation's rate (a sim that renders nothing pays nothing).
+
+Usage: ``make bench-camera`` or ``.venv/bin/python benchmarks/camera_bench.py [--rounds 5] [--seconds 2]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import time
+from collections.abc import Callable
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import robot_models
+from robot_models.cameras import CameraLayout
+from sim_bridge import Simulation
+from sim_bridge.camera import CameraRenderer
+
+SIZES = ((320, 240), (640, 480), (1280, 720))
+CAMERA_RATE_HZ = 30.0  # of sim time
+
+
+def frames_per_second(sim: Simulation, renderer: CameraRenderer, seconds: float, gain: float = 1.0) -> float:
+    """Frames per wall second of ``renderer.render`` over about ``seconds``."""
+    renderer.render(sim.data, gain)
+    frames, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        renderer.render(sim.data, gain)
+        frames += 1
+    return frames / (time.perf_counter() - start)
+
+
+def steps_per_second(sim: Simulation, renderer: CameraRenderer | None, sim_seconds: float) -> float:
+    """Physics steps per wall second over ``sim_seconds`` of sim time, rendering at CAMERA_RATE_HZ if a renderer is given."""
+    dt = sim.physics_timestep
+    frames = round(sim_seconds * CAMERA_RATE_HZ)
+    start_time, steps_done = sim.time, 0
+    start = time.perf_counter()
+    for k in range(1, frames + 1):
+        due = round(k / CAMERA_RATE_HZ / dt)  # physics steps from the start to the k-th frame
+        sim.step_physics(due - steps_done)
+        steps_done = due
+        if renderer is not None:
+            renderer.render(sim.data)
+    elapsed = time.perf_counter() - start
+    assert abs(sim.time - start_time - steps_done * dt) < 1e-9
+    return steps_done / elapsed
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rounds", type=int, default=5, help="interleaved rounds (medians are printed)")
+    parser.add_argument("--seconds", type=float, default=2.0, help="wall seconds per frame-rate measurement")
+    parser.add_argument("--sim-seconds", type=float, default=4.0, help="sim seconds per stepping measurement")
+    args = parser.parse_args()
+
+    robot = robot_models.load("g1")
+    camera: CameraLayout = robot.cameras[0]
+    sim = Simulation(robot)
+    sim.step(round(0.5 / sim.control_timestep))
+    renderers = {size: CameraRenderer(sim.model, camera, *size) for size in SIZES}
+    rows: dict[str, Callable[[], float]] = {}
+    for size, renderer in renderers.items():
+        rows[f"render {size[0]}x{size[1]} [frames/s]"] = lambda r=renderer: frames_per_second(sim, r, args.seconds)
+    rows["render 640x480, exposure 2 [frames/s]"] = lambda: frames_per_second(sim, renderers[(640, 480)], args.seconds, 2.0)
+    rows["physics only [steps/s]"] = lambda: steps_per_second(sim, None, args.sim_seconds)
+    for size in ((320, 240), (640, 480)):
+        rows[f"physics + {size[0]}x{size[1]} at 30 Hz sim [steps/s]"] = (
+            lambda r=renderers[size]: steps_per_second(sim, r, args.sim_seconds))
+    results: dict[str, list[float]] = {name: [] for name in rows}
+    started = time.perf_counter()
+    try:
+        for round_index in range(args.rounds):
+            for name, measure in rows.items():
+                results[name].append(measure())
+            print(f"round {round_index + 1}/{args.rounds} done", flush=True)
+    finally:
+        for renderer in renderers.values():
+            renderer.close()
+    median = {name: statistics.median(values) for name, values in results.items()}
+    physics = median["physics only [steps/s]"]
+    print(f"\nG1 head camera ({camera.name}, fovy {camera.fovy_deg:g} deg), standing; medians of {args.rounds} rounds "
+          f"(min-max in brackets); physics step {sim.physics_timestep * 1e3:g} ms")
+    print(f"{'':46} {'median':>10} {'range':>20} {'x real time':>12}")
+    for name, values in results.items():
+        real_time = f"{median[name] * sim.physics_timestep:12.2f}" if "steps/s" in name else ""
+        print(f"{name:46} {median[name]:10.1f} [{min(values):8.1f}, {max(values):8.1f}] {real_time}")
+    for size in ((320, 240), (640, 480)):
+        with_camera = median[f"physics + {size[0]}x{size[1]} at 30 Hz sim [steps/s]"]
+        print(f"physics-only / with {size[0]}x{size[1]} at 30 Hz: {physics / with_camera:.2f} "
+              f"(the sim runs {with_camera / physics:.0%} as fast while the camera is subscribed)")
+    print(f"(benchmark wall time {time.perf_counter() - started:.0f} s; load average now {os.getloadavg()[0]:.1f} "
+          f"on {os.cpu_count()} cores)")
+
+
+if __name__ == "__main__":
+    main()
