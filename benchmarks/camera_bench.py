@@ -16,6 +16,7 @@ Usage: ``make bench-camera`` or ``.venv/bin/python benchmarks/camera_bench.py [-
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import statistics
 import time
@@ -73,12 +74,12 @@ def main() -> None:
     renderers = {size: CameraRenderer(sim.model, camera, *size) for size in SIZES}
     rows: dict[str, Callable[[], float]] = {}
     for size, renderer in renderers.items():
-        rows[f"render {size[0]}x{size[1]} [frames/s]"] = lambda r=renderer: frames_per_second(sim, r, args.seconds)
+        rows[f"render {size[0]}x{size[1]} [frames/s]"] = functools.partial(frames_per_second, sim, renderer, args.seconds)
     rows["render 640x480, exposure 2 [frames/s]"] = lambda: frames_per_second(sim, renderers[(640, 480)], args.seconds, 2.0)
     rows["physics only [steps/s]"] = lambda: steps_per_second(sim, None, args.sim_seconds)
     for size in ((320, 240), (640, 480)):
-        rows[f"physics + {size[0]}x{size[1]} at 30 Hz sim [steps/s]"] = (
-            lambda r=renderers[size]: steps_per_second(sim, r, args.sim_seconds))
+        rows[f"physics + {size[0]}x{size[1]} at 30 Hz sim [steps/s]"] = functools.partial(
+            steps_per_second, sim, renderers[size], args.sim_seconds)
     results: dict[str, list[float]] = {name: [] for name in rows}
     started = time.perf_counter()
     try:

@@ -51,6 +51,11 @@ def commands_for(options: argparse.Namespace, ros_args: list[str]) -> list[list[
         servers.append(["power_node", "--ros-args", "-p", f"robot:={options.robot}"])
     if sensors.wrists:
         servers.append(["hand_sensors", "--ros-args", "-p", f"robot:={options.robot}"])
+    cameras = robot_models.cameras_of(options.robot)
+    if cameras:
+        servers.append(["camera_node", "--ros-args", "-p", f"robot:={options.robot}"])
+    if any(camera.tilt_joint is not None for camera in cameras):
+        servers.append(["head_node", "--ros-args", "-p", f"robot:={options.robot}"])
     extra = ros_args[1:] if ros_args else []
     return [command + extra for command in [sim, *servers]]
 

@@ -21,6 +21,7 @@ from rclpy.parameter import Parameter
 
 from nodes.conversions import set_time
 from nodes.parameters import ParameterSpec, declare
+from nodes.sim_camera import CameraStreams
 from nodes.sim_sensors import SensorStreams
 from nodes.skill_bridge import SkillBridge
 from nodes.skill_protocol import SkillContext
@@ -98,6 +99,7 @@ class InLoopPlugins:
             hosts.update({arm: arms for arm in self.arms.arms})
         self.skills = SkillBridge(node, sim, lock, hosts, context)
         self.sensors = SensorStreams(node, sim, lock, self.battery)
+        self.cameras = CameraStreams(node, sim, lock)
 
     # ----- /cmd_vel ----------------------------------------------------------------------
     def on_cmd_vel(self, msg: Twist) -> None:
@@ -173,7 +175,9 @@ class InLoopPlugins:
 
         Returns how many goals ended.
         """
-        self.sensors.publish_due(self._sim.time)
+        now = self._sim.time
+        self.sensors.publish_due(now)
+        self.cameras.publish_due(now)
         return self.skills.publish_changed()
 
     def publish_state(self, now: float) -> None:
@@ -210,6 +214,7 @@ class InLoopPlugins:
         self._cmd_vel_time = -math.inf
         self._cmd_vel_live = False
         self.sensors.on_reset()
+        self.cameras.on_reset()
         self.skills.publish_changed()  # the goals the reset ended, at once
 
     def on_fault(self, reason: str) -> None:

@@ -279,6 +279,9 @@ class SimNode(LifecycleNode):
             if self.context.ok():
                 raise
             # The context was shut down (Ctrl-C / SIGTERM) while publishing: end quietly.
+        finally:
+            if self.plugins is not None:
+                self.plugins.cameras.close()  # their GL contexts belong to this thread
 
     def _loop(self) -> None:
         assert self.sim is not None

@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib
 from collections.abc import Callable
 
+from robot_models.cameras import CameraLayout
 from robot_models.sensors import SensorLayout
 from robot_models.spec import (
     ArmScene,
@@ -69,7 +70,19 @@ def sensors_of(name: str) -> SensorLayout:
     return layout
 
 
+def cameras_of(name: str) -> tuple[CameraLayout, ...]:
+    """A robot's cameras (names, frames, tilt ranges), from its module's ``CAMERAS`` (else from its model).
+
+    Raises:
+        UnknownRobotError: the name is not registered; the message lists the names that are.
+    """
+    if name not in _REGISTRY:
+        raise UnknownRobotError(f"unknown robot {name!r}; known robots: {', '.join(ROBOT_NAMES)}")
+    cameras = getattr(importlib.import_module(f"robot_models.{name}"), "CAMERAS", None)
+    return tuple(cameras) if cameras is not None else load(name).cameras
+
+
 __all__ = [
     "ROBOT_NAMES", "ArmScene", "GraspLimits", "JointLimits", "Obstacle", "RobotModelError", "RobotSpec", "UnknownRobotError",
-    "UnknownSceneError", "WalkingLimits", "load", "sensors_of",
+    "UnknownSceneError", "WalkingLimits", "cameras_of", "load", "sensors_of",
 ]

@@ -29,6 +29,8 @@ SUN_LIGHT = "camera_sun"
 SKY_ZENITH_RGB: Vec3 = (0.35, 0.55, 0.85)
 SKY_HORIZON_RGB: Vec3 = (0.7, 0.8, 0.95)
 FLOOR_RGB: Vec3 = (0.45, 0.45, 0.45)
+FLOOR_DARK_FACTOR = 0.7  # the checker's darker squares [fraction of FLOOR_RGB]
+FLOOR_SQUARE_M = 1.0  # side of a checker square [m]
 
 
 @dataclass(frozen=True)
@@ -111,8 +113,13 @@ def prepare_scene_for_cameras(spec: mujoco.MjSpec, offscreen_size: tuple[int, in
     spec.add_texture(name=SKY_TEXTURE, type=mujoco.mjtTexture.mjTEXTURE_SKYBOX, builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT,
                      rgb1=list(SKY_ZENITH_RGB), rgb2=list(SKY_HORIZON_RGB), width=256, height=1536)
     spec.visual.rgba.haze = [*SKY_HORIZON_RGB, 1.0]  # where the floor plane meets the sky (white by default)
-    spec.add_material(name=FLOOR_MATERIAL, rgba=[*FLOOR_RGB, 1.0], reflectance=0.0, specular=0.0,
-                      shininess=0.0)  # no glare on the floor at grazing angles
+    # A checker of 1 m squares in two greys (as Gazebo's and Isaac's default grounds): the floor shows distance and
+    # motion in the images (a plain floor gives an image nothing to track), and stays grey against the sky.
+    spec.add_texture(name=FLOOR_MATERIAL, type=mujoco.mjtTexture.mjTEXTURE_2D, builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
+                     rgb1=list(FLOOR_RGB), rgb2=[c * FLOOR_DARK_FACTOR for c in FLOOR_RGB], width=512, height=512)
+    floor = spec.add_material(name=FLOOR_MATERIAL, reflectance=0.0, specular=0.0, shininess=0.0,  # no glare
+                              texuniform=True, texrepeat=[0.5 / FLOOR_SQUARE_M] * 2)
+    floor.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = FLOOR_MATERIAL
     spec.worldbody.add_light(name=SUN_LIGHT, type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, pos=[0.0, 0.0, 5.0],
                              dir=[0.3, 0.2, -1.0], diffuse=[0.5, 0.5, 0.5], specular=[0.1, 0.1, 0.1], castshadow=False)
     return FLOOR_MATERIAL

@@ -138,7 +138,14 @@ class CameraRenderer:
         self._camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
         self._camera.fixedcamid = camera_id
         self._scratch = mujoco.MjData(model)  # the pose is computed here: the caller's data is only read
-        self._renderer: mujoco.Renderer | None = mujoco.Renderer(model, height=height, width=width)
+        # No multisampling (each pixel one sample, as a sensor's pixels): on the CPU it halves a frame's cost. The
+        # context reads the sample count when it is made; the model's own setting (scenario videos) is kept.
+        samples = int(model.vis.quality.offsamples)
+        model.vis.quality.offsamples = 0
+        try:
+            self._renderer: mujoco.Renderer | None = mujoco.Renderer(model, height=height, width=width)
+        finally:
+            model.vis.quality.offsamples = samples
         # No shadows: on the CPU a light's shadow map (4096^2 texels) costs several times the frame itself.
         self._renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
 

@@ -8,6 +8,7 @@
     sim push FX FY FZ [--duration S] [--body B]  push a body (default: the base) with a force [N]
     sim param get|set|list|describe NODE [NAME] [VALUE]
     sim watch                                    live view of sim time, RTF, base pose, goals
+    sim snapshot frame.png [--camera head_camera] save the camera's next image as a PNG
 """
 
 from __future__ import annotations
@@ -236,6 +237,32 @@ def _watch_view(options: argparse.Namespace) -> int:
     return 0
 
 
+def _snapshot(options: argparse.Namespace) -> int:
+    """Save the next image of a camera of /sim as a PNG; print its stamp, size and brightness."""
+    import numpy as np
+    from matplotlib import image as mpimg
+    from sensor_msgs.msg import Image
+
+    from sim_client.session import RosSession, WaitTimeout
+
+    with RosSession("sim_snapshot", use_sim_time=True) as session:
+        images = session.record(Image, f"/{options.camera}/image_raw", keep=1)
+        try:
+            msg = session.wait_for(lambda: images.latest, options.timeout, f"an image on /{options.camera}/image_raw")
+        except WaitTimeout as error:
+            print(f"sim snapshot: {error} (is /sim up with a robot that has this camera?)", file=sys.stderr)
+            return 1
+    if msg.encoding != "rgb8":
+        print(f"sim snapshot: encoding {msg.encoding!r} is not rgb8", file=sys.stderr)
+        return 1
+    pixels = np.frombuffer(bytes(msg.data), dtype=np.uint8).reshape(msg.height, msg.width, 3)
+    mpimg.imsave(options.out, pixels)
+    stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+    print(f"{options.out}: {msg.width}x{msg.height} from {msg.header.frame_id} at t={stamp:.3f} s, "
+          f"mean brightness {pixels.mean():.1f} of 255")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="sim", description="Drive the headless simulator: bring it up, send goals, tune parameters, watch.")
@@ -278,6 +305,10 @@ def build_parser() -> argparse.ArgumentParser:
     watch = sub.add_parser("watch", help="live view of sim time, real-time factor, base pose and active goals")
     watch.add_argument("--once", action="store_true", help="print one snapshot and exit")
     watch.add_argument("--timeout", type=float, default=30.0)
+    snapshot = sub.add_parser("snapshot", help="save a camera's next image as a PNG (G1: head_camera; Panda: scene_camera)")
+    snapshot.add_argument("out", help="the PNG file to write")
+    snapshot.add_argument("--camera", default="head_camera", help="the camera's name (its topic: /<camera>/image_raw)")
+    snapshot.add_argument("--timeout", type=float, default=30.0, help="wall seconds to wait for an image")
     return parser
 
 
@@ -294,6 +325,8 @@ def main(argv: list[str] | None = None) -> int:
         return _watch(options)
     if options.command == "push":
         return _push(options)
+    if options.command == "snapshot":
+        return _snapshot(options)
     from sim_client.actions import MoveArmClient, NavigateClient, PickPlaceClient, WalkClient
 
     if options.command == "walk":

@@ -57,9 +57,12 @@ class ResetPoseSkill:
         self._timeout = goal.timeout_s or DEFAULT_TIMEOUT_S
         model = robot.model
         key = model.key(robot.default_keyframe)
-        self._actuators = np.array([model.actuator(j).id for j in robot.actuated_joints])
-        self._qpos_adr = np.array([model.joint(j).qposadr[0] for j in robot.actuated_joints])
-        self._dof_adr = np.array([model.joint(j).dofadr[0] for j in robot.actuated_joints])
+        # The body's joints; a camera's tilt mount keeps the tilt its owner (/head) commanded.
+        mounts = {camera.tilt_joint for camera in robot.cameras}
+        posture = [j for j in robot.actuated_joints if j not in mounts]
+        self._actuators = np.array([model.actuator(j).id for j in posture])
+        self._qpos_adr = np.array([model.joint(j).qposadr[0] for j in posture])
+        self._dof_adr = np.array([model.joint(j).dofadr[0] for j in posture])
         self._target_ctrl = key.ctrl[self._actuators].copy()
         self._target_q = key.qpos[self._qpos_adr].copy()
         self._phase = STOPPING

@@ -106,6 +106,16 @@ def test_reset_pose_after_a_walk_returns_to_the_default_posture(g1, legs):
     assert float(reset.final_result["max_joint_error"]) <= 0.05
 
 
+def test_reset_pose_leaves_the_head_camera_where_its_owner_pointed_it(g1, legs):
+    sim, walker, host, _ = legs
+    camera = next(c for c in g1.cameras if c.tilt_joint is not None)
+    sim.set_camera_tilt(camera.name, 0.3)
+    reset = host.start(3, ResetPoseSkill(walker, g1, ResetPoseGoal()), sim.model, sim.data)
+    _run_until_ended(sim, reset, 25.0)
+    assert reset.outcome is not None and reset.outcome.code == "SUCCESS", reset.outcome
+    assert sim.camera_tilt(camera.name) == pytest.approx(0.3, abs=0.01)
+
+
 def test_reset_pose_preempts_a_walk_and_refuses_a_fallen_robot(g1, legs):
     sim, walker, host, battery = legs
     walk = host.start(1, _walk(g1, walker, battery, 3.0), sim.model, sim.data)

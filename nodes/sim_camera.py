@@ -1,0 +1,246 @@
+"""``/sim``'s cameras: ``/<camera>/image_raw`` and ``/<camera>/camera_info``, rendered headless.
+
+Each camera of the robot (:attr:`robot_models.RobotSpec.cameras`: the G1's head camera on its tilt
+mount, the Panda's scene camera) is rendered from the simulation's own state, in the physics thread,
+at the publication stop at or after each frame falls due (``rate_hz`` of sim time), and only while
+someone subscribes to its image or its camera info: a camera nobody watches costs nothing. A frame is
+stamped with the sim time it shows; its ``CameraInfo`` carries the same stamp and intrinsics that match
+the rendering (fovy -> fx = fy, principal point at the centre, no distortion), in the camera's optical
+frame (z out of the lens, x right, y down), which /tf carries with the robot's links.
+
+The camera's settings come from ``/camera`` (its parameters) on ``/sim/<camera>/settings``; the
+tilt of a mounted camera from ``/head`` on ``/sim/<camera>/tilt``: a servo in the simulation turns the
+mount, so the image and /tf follow it under physics. Both topics are latched, so a restarted /sim
+takes the latest. Exposure scales the scene's linear brightness (``exposure_ms`` / 10 ms), saturating
+as a sensor does.
+"""
+
+from __future__ import annotations
+
+import functools
+import struct
+import threading
+from dataclasses import dataclass
+
+from geometry_msgs.msg import TransformStamped
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.node import Node
+from rclpy.publisher import Publisher
+from rclpy.qos import QoSProfile
+from rclpy.serialization import serialize_message
+from sensor_msgs.msg import CameraInfo, Image
+from std_msgs.msg import Float64
+from tf2_msgs.msg import TFMessage
+
+from nodes.conversions import set_time
+from nodes.sim_sensors import LATCHED
+from robot_models.cameras import CameraLayout
+from sim_bridge import Simulation
+from sim_bridge.camera import CameraIntrinsics, CameraRenderer, intrinsics
+from sim_interfaces.msg import CameraSettings
+
+NOMINAL_EXPOSURE_MS = 10.0  # the exposure at which an image shows the scene as lit (gain 1) [ms]
+EXPOSURE_RANGE_MS = (0.1, 100.0)
+RATE_RANGE_HZ = (0.5, 60.0)
+WIDTH_RANGE_PX = (16, 1280)
+HEIGHT_RANGE_PX = (16, 720)
+DEFAULT_SETTINGS = (NOMINAL_EXPOSURE_MS, 10.0, 320, 240)  # exposure [ms], rate [Hz], width, height [px]
+IMAGE_QOS = QoSProfile(depth=4)  # a frame is ~0.2-0.9 MB: a slow reader gets the latest few, not seconds of them
+NANOSECONDS_PER_SECOND = 1_000_000_000
+_STAMP_SENTINEL = struct.pack("<iI", 0x2BADF00D, 0x1CEB00DA)
+
+
+def settings_topic(camera: str) -> str:
+    return f"/sim/{camera}/settings"
+
+
+def tilt_topic(camera: str) -> str:
+    return f"/sim/{camera}/tilt"
+
+
+def settings_problem(msg: CameraSettings) -> str:
+    """Why these settings cannot be used ('' when they can)."""
+    checks = ((msg.exposure_ms, EXPOSURE_RANGE_MS, "exposure_ms"), (msg.rate_hz, RATE_RANGE_HZ, "rate_hz"),
+              (msg.width, WIDTH_RANGE_PX, "width"), (msg.height, HEIGHT_RANGE_PX, "height"))
+    for value, (low, high), name in checks:
+        if not low <= value <= high:  # also refuses NaN
+            return f"{name} {value} is outside [{low}, {high}]"
+    return ""
+
+
+class ImageTemplate:
+    """An rgb8 ``sensor_msgs/Image`` of fixed size, serialized once; stamp and pixels are written into the bytes.
+
+    Serializing a 640x480 image through rclpy's message conversion costs milliseconds; copying the pixels into
+    a prepared CDR buffer costs tens of microseconds. The template checks its layout when it is built.
+    """
+
+    def __init__(self, frame_id: str, width: int, height: int) -> None:
+        msg = Image(height=height, width=width, encoding="rgb8", is_bigendian=0, step=3 * width)
+        msg.header.frame_id = frame_id
+        msg.header.stamp.sec, msg.header.stamp.nanosec = struct.unpack("<iI", _STAMP_SENTINEL)
+        self.size = 3 * width * height
+        msg.data = bytes(self.size)
+        buffer = bytearray(serialize_message(msg))
+        self._stamp = buffer.find(_STAMP_SENTINEL)
+        self._pixels = len(buffer) - self.size  # a uint8 sequence is the message's last field: its bytes end the buffer
+        length = struct.unpack_from("<I", buffer, self._pixels - 4)[0]
+        if self._stamp < 0 or length != self.size:
+            raise RuntimeError("cannot locate the stamp or the pixels in a serialized Image")
+        self._buffer = buffer
+
+    def serialize(self, sim_time: float, rgb: bytes) -> bytes:
+        total = round(sim_time * NANOSECONDS_PER_SECOND)
+        struct.pack_into("<iI", self._buffer, self._stamp, total // NANOSECONDS_PER_SECOND, total % NANOSECONDS_PER_SECOND)
+        self._buffer[self._pixels:] = rgb
+        return bytes(self._buffer)
+
+
+def camera_info_msg(frame_id: str, k: CameraIntrinsics) -> CameraInfo:
+    """The intrinsics of an ideal pinhole camera (no distortion), as image_pipeline expects them."""
+    msg = CameraInfo(width=k.width, height=k.height, distortion_model="plumb_bob", d=[0.0] * 5,
+                     k=list(k.k()), r=[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0], p=list(k.p()))
+    msg.header.frame_id = frame_id
+    return msg
+
+
+@dataclass
+class _Camera:
+    layout: CameraLayout
+    image_pub: Publisher
+    info_pub: Publisher
+    exposure_ms: float = DEFAULT_SETTINGS[0]
+    rate_hz: float = DEFAULT_SETTINGS[1]
+    size: tuple[int, int] = (DEFAULT_SETTINGS[2], DEFAULT_SETTINGS[3])  # width, height [px]
+    next_frame: float = 0.0  # sim time [s] the next frame falls due
+    renderer: CameraRenderer | None = None
+    template: ImageTemplate | None = None
+    info: CameraInfo | None = None
+    failed: str = ""  # why rendering is impossible here (logged once)
+    frames: int = 0
+
+
+class CameraStreams:
+    """The cameras of one simulation (see the module's text).
+
+    Args:
+        node: the sim node.
+        sim: its simulation.
+        lock: the lock that guards ``sim``; ``publish_due``/``on_reset`` are called with it held (in the
+            physics thread, which owns the renderers' GL contexts).
+    """
+
+    def __init__(self, node: Node, sim: Simulation, lock: threading.RLock) -> None:
+        self._node = node
+        self._sim = sim
+        self._lock = lock
+        self._cameras: list[_Camera] = []
+        group = MutuallyExclusiveCallbackGroup()
+        for layout in sim.robot.cameras:
+            camera = _Camera(layout, node.create_publisher(Image, f"/{layout.name}/image_raw", IMAGE_QOS),
+                             node.create_publisher(CameraInfo, f"/{layout.name}/camera_info", IMAGE_QOS))
+            self._cameras.append(camera)
+            node.create_subscription(CameraSettings, settings_topic(layout.name),
+                                     functools.partial(self._on_settings, camera), LATCHED, callback_group=group)
+            if layout.tilt_joint is not None:
+                node.create_subscription(Float64, tilt_topic(layout.name),
+                                         functools.partial(self._on_tilt, camera), LATCHED, callback_group=group)
+        self._publish_fixed_frames(node, sim)
+
+    def _publish_fixed_frames(self, node: Node, sim: Simulation) -> None:
+        """A camera fixed in the world (the Panda's scene camera) on /tf_static; a mounted one rides /tf with its links."""
+        model = sim.model
+        transforms = []
+        for layout in sim.robot.cameras:
+            body = model.body(layout.optical_frame)
+            if int(model.body_parentid[body.id]) != 0:
+                continue
+            transform = TransformStamped()
+            transform.header.frame_id = "world"
+            transform.child_frame_id = layout.optical_frame
+            p, q = body.pos.tolist(), body.quat.tolist()
+            t, r = transform.transform.translation, transform.transform.rotation
+            t.x, t.y, t.z = p[0], p[1], p[2]
+            r.w, r.x, r.y, r.z = q[0], q[1], q[2], q[3]
+            transforms.append(transform)
+        if transforms:
+            self._static_pub = node.create_publisher(TFMessage, "/tf_static", LATCHED)
+            self._static_pub.publish(TFMessage(transforms=transforms))
+
+    def __len__(self) -> int:
+        return len(self._cameras)
+
+    # ----- inputs (executor threads) ---------------------------------------------------------
+    def _on_settings(self, camera: _Camera, msg: CameraSettings) -> None:
+        problem = settings_problem(msg)
+        if problem:
+            self._node.get_logger().warning(f"{camera.layout.name} settings from /camera refused: {problem}")
+            return
+        with self._lock:
+            camera.exposure_ms, camera.rate_hz = float(msg.exposure_ms), float(msg.rate_hz)
+            camera.size = (int(msg.width), int(msg.height))  # a new size takes a new renderer at the next frame
+            camera.next_frame = min(camera.next_frame, self._sim.time + 1.0 / camera.rate_hz)
+
+    def _on_tilt(self, camera: _Camera, msg: Float64) -> None:
+        with self._lock:
+            try:
+                self._sim.set_camera_tilt(camera.layout.name, float(msg.data))
+            except ValueError as error:
+                self._node.get_logger().warning(f"{camera.layout.name} tilt from /head refused: {error}")
+
+    # ----- frames (physics thread, under the lock) -----------------------------------------------
+    def publish_due(self, now: float) -> None:
+        """At every publication stop: render and publish each camera whose frame fell due, while it is watched."""
+        for camera in self._cameras:
+            if now + 1e-9 < camera.next_frame:
+                continue
+            period = 1.0 / camera.rate_hz
+            camera.next_frame = camera.next_frame + period if camera.next_frame + period > now else now + period
+            if camera.failed or (camera.image_pub.get_subscription_count() == 0
+                                 and camera.info_pub.get_subscription_count() == 0):
+                continue
+            self._publish_frame(camera, now)
+
+    def _publish_frame(self, camera: _Camera, now: float) -> None:
+        try:
+            renderer = self._renderer(camera)
+        except Exception as error:  # noqa: BLE001 - no GL here: say so once, keep simulating
+            camera.failed = f"{type(error).__name__}: {error}"
+            self._node.get_logger().error(
+                f"cannot render {camera.layout.name} ({camera.failed}); its images are off. Headless rendering needs "
+                "MUJOCO_GL=egl (or osmesa) and the GL libraries")
+            return
+        assert camera.template is not None and camera.info is not None
+        if camera.image_pub.get_subscription_count() > 0:
+            rgb = renderer.render(self._sim.data, camera.exposure_ms / NOMINAL_EXPOSURE_MS)
+            camera.image_pub.publish(camera.template.serialize(now, rgb.tobytes()))
+            camera.frames += 1
+        set_time(camera.info.header.stamp, now)
+        camera.info_pub.publish(camera.info)
+
+    def _renderer(self, camera: _Camera) -> CameraRenderer:
+        """The camera's renderer at its present size, made on this (the physics) thread when first needed."""
+        width, height = camera.size
+        if camera.renderer is not None:
+            shown = camera.renderer.intrinsics
+            if (shown.width, shown.height) == (width, height):
+                return camera.renderer
+            camera.renderer.close()
+            camera.renderer = None
+        renderer = CameraRenderer(self._sim.model, camera.layout, width, height)
+        camera.template = ImageTemplate(camera.layout.optical_frame, width, height)
+        camera.info = camera_info_msg(camera.layout.optical_frame, intrinsics(camera.layout, width, height))
+        camera.renderer = renderer
+        return renderer
+
+    def on_reset(self) -> None:
+        """After a reset: frames fall due from the new sim time."""
+        for camera in self._cameras:
+            camera.next_frame = self._sim.time
+
+    def close(self) -> None:
+        """On the physics thread as it ends: free the GL contexts."""
+        for camera in self._cameras:
+            if camera.renderer is not None:
+                camera.renderer.close()
+                camera.renderer = None
