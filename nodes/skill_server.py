@@ -25,6 +25,7 @@ from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from rclpy.qos import QoSProfile
 from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.task import Future
 
@@ -45,6 +46,12 @@ SIM_SILENCE_S = 1.8
 # The watchdog runs every RESEND_PERIOD_S; a longer gap means this server itself was starved of CPU
 # (states from /sim may be queued unread): the gap is not counted as /sim's silence.
 STARVED_GAP_S = 0.5
+# The goal, cancel and result services keep this many requests (and responses) for a slow reader, as
+# rclpy's parameter services do (qos_profile_parameters). rclpy's action default is ROS's services
+# default, keep-last 10: every client's requests share the server's one request reader, so the 11th
+# of a burst not yet taken by the executor overwrote the 1st, which was never answered (40 MoveArm goal
+# requests sent at once: 11 answered); likewise 11 result requests at once, 10 answered.
+SERVICE_QOS = QoSProfile(depth=1000)
 _TERMINAL = frozenset((SkillState.SUCCEEDED, SkillState.ABORTED, SkillState.CANCELED))
 _seq = itertools.count(1 + (os.getpid() % 4096) * 1_000_000)  # unique per process; /sim echoes it
 _seq_lock = threading.Lock()
@@ -99,7 +106,9 @@ class SkillActionServer:
         group = ReentrantCallbackGroup()
         self.server = ActionServer(
             node, binding.action_type, action_name, execute_callback=self._execute, goal_callback=self._accept,
-            handle_accepted_callback=lambda handle: handle.execute(), cancel_callback=self._cancel, callback_group=group)
+            handle_accepted_callback=lambda handle: handle.execute(), cancel_callback=self._cancel, callback_group=group,
+            goal_service_qos_profile=SERVICE_QOS, result_service_qos_profile=SERVICE_QOS,
+            cancel_service_qos_profile=SERVICE_QOS)
         # Runs only while goals run (an idle server has no timer firing).
         self._watchdog_timer = node.create_timer(RESEND_PERIOD_S, self._watchdog, callback_group=group,
                                                  clock=Clock(clock_type=ClockType.STEADY_TIME))

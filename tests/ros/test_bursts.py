@@ -11,8 +11,11 @@ import time
 
 import pytest
 from action_msgs.msg import GoalStatus
+from rclpy.action import ActionClient
+from rclpy.qos import QoSProfile
 
 from sim_client import RosSession
+from sim_client.session import WaitTimeout
 from sim_interfaces.action import MoveArm, Walk
 from tests.ros.actions import ready_client, result, send
 from tests.ros.processes import running
@@ -76,3 +79,39 @@ def test_a_burst_from_two_clients_is_answered_and_ends_once_per_goal(case):
         assert codes.count(action_type.Result.SUCCESS) >= 1
         preempted = codes.count(action_type.Result.PREEMPTED)
         assert preempted + codes.count(action_type.Result.SUCCESS) == len(codes), codes
+
+
+AT_ONCE = 40
+
+
+def wait_all(session: RosSession, futures: list, timeout: float) -> int:
+    """How many of ``futures`` are done once all are, or ``timeout`` wall seconds passed."""
+    try:
+        session.wait_for(lambda: all(f.done() for f in futures), timeout, "the answers")
+    except WaitTimeout:
+        pass
+    return sum(f.done() for f in futures)
+
+
+def test_goal_and_result_requests_sent_all_at_once_are_all_answered() -> None:
+    """40 goal requests in one turn of the client's executor, then their 40 result requests likewise.
+
+    The client keeps 1000 requests and responses (rclpy's default is keep-last 10 on both ends), so
+    what is tested is the server: its request readers once kept the last 10, and 11 of 40 were answered.
+    """
+    deep = QoSProfile(depth=1000)
+    with running(["bringup", "--robot", "panda", "--rtf", "1"]), RosSession("at_once", use_sim_time=False) as session:
+        action = ActionClient(session.node, MoveArm, "/move_arm", goal_service_qos_profile=deep,
+                              result_service_qos_profile=deep, cancel_service_qos_profile=deep)
+        session.wait_for(action.server_is_ready, READY_S, "action server /move_arm")
+        requests = session.in_executor(lambda: [action.send_goal_async(move_goal(i)) for i in range(AT_ONCE)])
+        answered = wait_all(session, requests, 30.0)
+        assert answered == AT_ONCE, f"{answered} of {AT_ONCE} goal requests answered within 30 s"
+        handles = [f.result() for f in requests]
+        assert all(handle.accepted for handle in handles)
+        results = session.in_executor(lambda: [handle.get_result_async() for handle in handles])
+        answered = wait_all(session, results, 120.0)
+        assert answered == AT_ONCE, f"{answered} of {AT_ONCE} result requests answered within 120 s"
+        codes = [f.result().result.error_code for f in results]
+        # The server takes requests that arrive together in any order: one goal, the last it took, succeeds.
+        assert codes.count(MoveArm.Result.SUCCESS) == 1 and codes.count(MoveArm.Result.PREEMPTED) == AT_ONCE - 1, codes
