@@ -1,9 +1,10 @@
 """``/sim``'s cameras: ``/<camera>/image_raw`` and ``/<camera>/camera_info``, rendered headless.
 
 Each camera of the robot (:attr:`robot_models.RobotSpec.cameras`: the G1's head camera on its tilt
-mount, the Panda's scene camera) is rendered from the simulation's own state, in the physics thread,
-at the publication stop at or after each frame falls due (``rate_hz`` of sim time), and only while
-someone subscribes to its image or its camera info: a camera nobody watches costs nothing. A frame is
+mount, the Panda's scene camera) is rendered from the simulation's own state at the publication stop
+at or after each frame falls due (``rate_hz`` of sim time), and only while someone subscribes to its
+image or its camera info: a camera nobody watches costs nothing. The state of that instant is copied
+and drawn by a render thread (which owns the GL contexts), so the physics steps on while a frame is drawn. A frame is
 stamped with the sim time it shows; its ``CameraInfo`` carries the same stamp and intrinsics that match
 the rendering (fovy -> fx = fy, principal point at the centre, no distortion), in the camera's optical
 frame (z out of the lens, x right, y down), which /tf carries with the robot's links.
@@ -18,11 +19,15 @@ as a sensor does.
 from __future__ import annotations
 
 import functools
+import queue
 import struct
 import threading
 from dataclasses import dataclass
 
+import mujoco
+import numpy as np
 from geometry_msgs.msg import TransformStamped
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 from rclpy.publisher import Publisher
@@ -126,8 +131,7 @@ class CameraStreams:
     Args:
         node: the sim node.
         sim: its simulation.
-        lock: the lock that guards ``sim``; ``publish_due``/``on_reset`` are called with it held (in the
-            physics thread, which owns the renderers' GL contexts).
+        lock: the lock that guards ``sim``; ``publish_due``/``on_reset`` are called with it held.
     """
 
     def __init__(self, node: Node, sim: Simulation, lock: threading.RLock) -> None:
@@ -135,6 +139,7 @@ class CameraStreams:
         self._sim = sim
         self._lock = lock
         self._cameras: list[_Camera] = []
+        self._worker = _RenderThread(node, sim)
         group = MutuallyExclusiveCallbackGroup()
         for layout in sim.robot.cameras:
             camera = _Camera(layout, node.create_publisher(Image, f"/{layout.name}/image_raw", IMAGE_QOS),
@@ -188,9 +193,10 @@ class CameraStreams:
             except ValueError as error:
                 self._node.get_logger().warning(f"{camera.layout.name} tilt from /head refused: {error}")
 
-    # ----- frames (physics thread, under the lock) -----------------------------------------------
+    # ----- frames ----------------------------------------------------------------------------------
     def publish_due(self, now: float) -> None:
-        """At every publication stop: render and publish each camera whose frame fell due, while it is watched."""
+        """Under the lock, at every publication stop (from the physics thread, or a service stepping a paused sim):
+        hand each camera whose frame fell due, while it is watched, to the render thread."""
         for camera in self._cameras:
             if now + 1e-9 < camera.next_frame:
                 continue
@@ -199,39 +205,9 @@ class CameraStreams:
             if camera.failed or (camera.image_pub.get_subscription_count() == 0
                                  and camera.info_pub.get_subscription_count() == 0):
                 continue
-            self._publish_frame(camera, now)
-
-    def _publish_frame(self, camera: _Camera, now: float) -> None:
-        try:
-            renderer = self._renderer(camera)
-        except Exception as error:  # noqa: BLE001 - no GL here: say so once, keep simulating
-            camera.failed = f"{type(error).__name__}: {error}"
-            self._node.get_logger().error(
-                f"cannot render {camera.layout.name} ({camera.failed}); its images are off. Headless rendering needs "
-                "MUJOCO_GL=egl (or osmesa) and the GL libraries")
-            return
-        assert camera.template is not None and camera.info is not None
-        if camera.image_pub.get_subscription_count() > 0:
-            rgb = renderer.render(self._sim.data, camera.exposure_ms / NOMINAL_EXPOSURE_MS)
-            camera.image_pub.publish(camera.template.serialize(now, rgb.tobytes()))
-            camera.frames += 1
-        set_time(camera.info.header.stamp, now)
-        camera.info_pub.publish(camera.info)
-
-    def _renderer(self, camera: _Camera) -> CameraRenderer:
-        """The camera's renderer at its present size, made on this (the physics) thread when first needed."""
-        width, height = camera.size
-        if camera.renderer is not None:
-            shown = camera.renderer.intrinsics
-            if (shown.width, shown.height) == (width, height):
-                return camera.renderer
-            camera.renderer.close()
-            camera.renderer = None
-        renderer = CameraRenderer(self._sim.model, camera.layout, width, height)
-        camera.template = ImageTemplate(camera.layout.optical_frame, width, height)
-        camera.info = camera_info_msg(camera.layout.optical_frame, intrinsics(camera.layout, width, height))
-        camera.renderer = renderer
-        return renderer
+            data = self._sim.data
+            self._worker.submit(_Frame(camera, now, data.qpos.copy(), data.mocap_pos.copy(), data.mocap_quat.copy(),
+                                       camera.exposure_ms / NOMINAL_EXPOSURE_MS, camera.size))
 
     def on_reset(self) -> None:
         """After a reset: frames fall due from the new sim time."""
@@ -239,8 +215,98 @@ class CameraStreams:
             camera.next_frame = self._sim.time
 
     def close(self) -> None:
-        """On the physics thread as it ends: free the GL contexts."""
-        for camera in self._cameras:
-            if camera.renderer is not None:
-                camera.renderer.close()
-                camera.renderer = None
+        """Stop the render thread (it frees the GL contexts it made)."""
+        self._worker.stop()
+
+
+@dataclass(frozen=True)
+class _Frame:
+    """A frame to render: the camera, the sim time it shows and the state then (copies), its settings."""
+
+    camera: _Camera
+    sim_time: float
+    qpos: np.ndarray
+    mocap_pos: np.ndarray
+    mocap_quat: np.ndarray
+    exposure_gain: float
+    size: tuple[int, int]
+
+
+class _RenderThread:
+    """Renders and publishes frames on a thread of its own, which owns every GL context.
+
+    An OpenGL context is current on one thread at a time, and ``/sim`` publishes from two (its physics
+    thread, and the service thread that steps a paused sim); so one thread renders them all. A frame is
+    rendered from a copy of the state at its sim time, so the picture is the same whenever it is drawn;
+    one frame is in flight at a time: the next hand-over waits for it, so no frame is dropped and a sim
+    that renders faster than it steps is slowed to the camera (the second CPU core renders while the
+    physics steps).
+    """
+
+    def __init__(self, node: Node, sim: Simulation) -> None:
+        self._node = node
+        self._model = sim.model
+        self._frames: queue.Queue[_Frame | None] = queue.Queue(maxsize=1)
+        self._thread: threading.Thread | None = None
+
+    def submit(self, frame: _Frame) -> None:
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._run, name="camera", daemon=True)
+            self._thread.start()
+        self._frames.put(frame)
+
+    def stop(self) -> None:
+        if self._thread is not None:
+            self._frames.put(None)
+            self._thread.join(timeout=10.0)
+            self._thread = None
+
+    def _run(self) -> None:
+        data = mujoco.MjData(self._model)  # the state a frame shows, copied in
+        renderers: list[CameraRenderer] = []
+        try:
+            while (frame := self._frames.get()) is not None:
+                camera = frame.camera
+                try:
+                    renderer = self._renderer(camera, frame.size)
+                except Exception as error:  # noqa: BLE001 - no GL here: say so once, keep simulating
+                    camera.failed = f"{type(error).__name__}: {error}"
+                    self._node.get_logger().error(
+                        f"cannot render {camera.layout.name} ({camera.failed}); its images are off. Headless rendering "
+                        "needs MUJOCO_GL=egl (or osmesa) and the GL libraries")
+                    continue
+                if renderer not in renderers:
+                    renderers.append(renderer)
+                self._publish(camera, renderer, frame, data)
+        except RCLError:
+            if self._node.context.ok():
+                raise
+        finally:
+            for renderer in renderers:
+                renderer.close()
+
+    def _publish(self, camera: _Camera, renderer: CameraRenderer, frame: _Frame, data: mujoco.MjData) -> None:
+        assert camera.template is not None and camera.info is not None
+        if camera.image_pub.get_subscription_count() > 0:
+            data.qpos[:], data.mocap_pos[:], data.mocap_quat[:] = frame.qpos, frame.mocap_pos, frame.mocap_quat
+            rgb = renderer.render(data, frame.exposure_gain)
+            camera.image_pub.publish(camera.template.serialize(frame.sim_time, rgb.tobytes()))
+            camera.frames += 1
+        set_time(camera.info.header.stamp, frame.sim_time)
+        camera.info_pub.publish(camera.info)
+
+    def _renderer(self, camera: _Camera, size: tuple[int, int]) -> CameraRenderer:
+        """The camera's renderer at this size, made on this thread when first needed (or when the size changed)."""
+        if camera.renderer is not None:
+            shown = camera.renderer.intrinsics
+            if (shown.width, shown.height) == size:
+                return camera.renderer
+            camera.renderer.close()
+            camera.renderer = None
+        width, height = size
+        renderer = CameraRenderer(self._model, camera.layout, width, height)
+        camera.template = ImageTemplate(camera.layout.optical_frame, width, height)
+        camera.info = camera_info_msg(camera.layout.optical_frame, intrinsics(camera.layout, width, height))
+        camera.renderer = renderer
+        return renderer
+

@@ -83,6 +83,8 @@ def main(argv: list[str] | None = None) -> int:
     run.add_argument("--record", action="store_true", help="write an MCAP of every topic")
     run.add_argument("--video", action="store_true", help="render an MP4 from the track camera")
     run.add_argument("--plots", action="store_true", help="plot what the expectations check")
+    run.add_argument("--camera", action="store_true",
+                     help="watch the robot's camera: its images in the MCAP and camera.png (each frame costs a rendering)")
     run.add_argument("--all", action="store_true", help="--record --video --plots")
     run.add_argument("--out", type=pathlib.Path, default=pathlib.Path("scenario_runs"), help="folder for the run folders")
     run.add_argument("--attach", action="store_true", help="use nodes already running (e.g. `sim up`) instead of starting them")
@@ -127,7 +129,8 @@ def main(argv: list[str] | None = None) -> int:
     from sim_client.scenario.runner import RunOptions, run as run_scenario
 
     run_options = RunOptions(rtf=options.rtf, record=options.record or options.all, video=options.video or options.all,
-                             plots=options.plots or options.all, out=options.out, launch=not options.attach)
+                             plots=options.plots or options.all, camera=options.camera, out=options.out,
+                             launch=not options.attach)
     try:
         result = run_scenario(scenario, run_options)
     except KeyboardInterrupt:

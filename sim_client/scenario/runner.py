@@ -22,8 +22,9 @@ from typing import Any, TextIO
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import Image, JointState
 
+import robot_models
 from nodes.processes import running
 from sim_client.actions import ACTION_CLIENTS, GoalHandle, ParameterError, Parameters, _ActionClientBase, push_request
 from sim_client.scenario import artifacts
@@ -51,6 +52,7 @@ from sim_interfaces.srv import Push, Reset, Step as StepSrv
 CHUNK_S = 0.02  # sim time advanced between checks [s]
 STARTUP_WALL_S = 90.0
 SERVICE_WALL_S = 30.0
+CAMERA_FRAMES_KEPT = 3000  # camera images kept for camera.png (~0.7 GB at 320x240 at most)
 GOAL_END_WALL_S = 5.0  # wall seconds to wait for the results of goals /sim reports ended
 
 
@@ -66,6 +68,7 @@ class RunOptions:
     record: bool = False
     video: bool = False
     plots: bool = False
+    camera: bool = False  # record the robot's camera (images in the MCAP, camera.png); costs a rendering per frame
     out: pathlib.Path = pathlib.Path("scenario_runs")
     quiet: bool = False
     launch: bool = True  # False: use nodes already running (``sim up``)
@@ -166,6 +169,13 @@ class ScenarioRun:
         self.objects = session.record(ObjectStates, "/objects", keep=1_000_000)
         # commanded vs measured speed, for the speed plot only: a run without plots carries no extra traffic
         self.locomotion = session.record(LocomotionState, "/sim/locomotion_state", keep=1_000_000) if options.plots else None
+        # /sim renders a camera only while it is watched: a run watches (and records) it only when asked.
+        cameras = [camera.name for camera in robot_models.cameras_of(scenario.robot)]
+        self.camera_name = cameras[0] if options.camera and cameras else ""
+        self.camera_images = (session.record(Image, f"/{self.camera_name}/image_raw", keep=CAMERA_FRAMES_KEPT)
+                              if self.camera_name else None)
+        self._unwatched = tuple(f"/{name}/{topic}" for name in cameras if name != self.camera_name
+                                for topic in ("image_raw", "camera_info"))
         self._reset = node.create_client(Reset, "/sim/reset")
         self._push = node.create_client(Push, "/sim/push")
         self._step = node.create_client(StepSrv, "/sim/step")
@@ -216,7 +226,7 @@ class ScenarioRun:
         """Wait for the sim (and servers), calibrate stepping, reset to the keyframe."""
         self.session.wait_for(self._reset.service_is_ready, STARTUP_WALL_S, "the /sim node (service /sim/reset)")
         if self.options.record:
-            self.mcap = artifacts.McapRecorder(self.session, self.folder / "recording.mcap")
+            self.mcap = artifacts.McapRecorder(self.session, self.folder / "recording.mcap", exclude=self._unwatched)
             self.mcap.discover()
         for action in self.scenario.actions:
             client = ACTION_CLIENTS[action](self.session)
@@ -685,6 +695,16 @@ def _write_artifacts(run_: ScenarioRun, result: RunResult, stream: TextIO) -> No
                 paths["plots"] = plot_paths
         except Exception as error:  # noqa: BLE001 - an artifact failing must not hide the verdicts
             result.report.setdefault("artifact_errors", []).append(f"plots: {type(error).__name__}: {error}")
+    if run_.camera_images is not None and end > start:
+        try:
+            from sim_client.scenario import camera_sheet
+
+            sheet = camera_sheet.make_sheet(run_.camera_images.messages(), start, end, folder / "camera.png",
+                                            f"{run_.scenario.name}: /{run_.camera_name}/image_raw")
+            if sheet is not None:
+                paths["camera"] = str(sheet)
+        except Exception as error:  # noqa: BLE001 - an artifact failing must not hide the verdicts
+            result.report.setdefault("artifact_errors", []).append(f"camera: {type(error).__name__}: {error}")
     if run_.options.video and end > start:
         try:
             from sim_client.scenario import render

@@ -64,6 +64,19 @@ def test_a_sim_only_scenario_runs_headless_with_a_json_report_and_an_mcap(tmp_pa
         assert counts.get(topic, 0) > 0, f"{topic} missing from the MCAP: {counts}"
     # 2 s of sim time at the sim's default rates (100 Hz clock, 200 Hz joint states)
     assert counts["/clock"] >= 190 and counts["/joint_states"] >= 380
+    assert "/scene_camera/image_raw" not in counts, "a run not asked for the camera leaves it unwatched (unrendered)"
+
+
+def test_a_run_with_the_camera_records_its_frames_and_a_contact_sheet(tmp_path):
+    result = run_quietly(schema.find("head_camera_tilt"), tmp_path, record=True, camera=True)
+    assert result.passed, result.report
+    report = json.loads((result.folder / "report.json").read_text())
+    sheet = pathlib.Path(report["artifacts"]["camera"])
+    assert sheet.name == "camera.png" and sheet.stat().st_size > 10_000
+    counts = artifacts.read_mcap_topics(pathlib.Path(report["artifacts"]["mcap"]))
+    frames_due = report["sim_time_s"] * 10.0  # camera_rate 10 Hz of sim time
+    assert counts.get("/head_camera/image_raw", 0) >= 0.9 * frames_due, counts
+    assert counts.get("/head_camera/camera_info", 0) >= counts["/head_camera/image_raw"]
 
 
 def test_a_failing_expectation_fails_the_run_and_is_named(tmp_path):
