@@ -155,7 +155,8 @@ def test_exposure_brightens_monotonically_and_saturates(client, g1):
         ok, reason = client.set_parameter("camera", "camera_exposure", exposure)
         assert ok, reason
         since = images.count
-        client.wait_for(lambda since=since: images.count >= since + 3, 60.0, "frames at the new exposure")
+        # the setting travels /camera -> /sim on a topic: a second of frames later it shows for sure
+        client.wait_for(lambda since=since: images.count >= since + 10, 60.0, "frames at the new exposure")
         picture = pixels(images.latest)
         means.append((float(picture.mean()), float((picture == 255).mean())))
     brightness = [m for m, _ in means]

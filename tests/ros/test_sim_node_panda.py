@@ -73,3 +73,21 @@ def test_lifecycle_transitions_through_the_standard_services(client):
         client.wait_for(lambda: clock.count > count + 5, STARTUP_S, "/clock after reactivation")
         assert sim_time(clock.latest) > stopped_at, "sim time keeps running forward"
         assert change(Transition.TRANSITION_ACTIVE_SHUTDOWN) and state() == "finalized"
+
+
+def test_the_panda_scene_camera_sees_the_table_from_a_frame_on_tf_static(client):
+    from rclpy.qos import DurabilityPolicy, QoSProfile
+    from sensor_msgs.msg import Image
+
+    import robot_models
+
+    camera = robot_models.cameras_of("panda")[0]
+    with running(["sim_node", "--ros-args", "-p", "robot:=panda", "-p", "real_time_factor:=0.0"]):
+        images = client.record(Image, f"/{camera.name}/image_raw", keep=5)
+        static = client.record(TFMessage, "/tf_static", qos=QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        image = client.wait_for(lambda: images.latest, STARTUP_S, f"an image on /{camera.name}/image_raw")
+        assert image.header.frame_id == camera.optical_frame and image.encoding == "rgb8"
+        client.wait_for(lambda: any((t.header.frame_id, t.child_frame_id) == ("world", camera.optical_frame)
+                                    for m in static.messages() for t in m.transforms), 30.0, "the camera's frame on /tf_static")
+        images.stop()
+        static.stop()
