@@ -121,7 +121,7 @@ class SensorSuite:
             self._imu_adr = tuple(self._sensor_adr(name) for name in (imu.quat_sensor, imu.gyro_sensor, imu.accel_sensor))
         self._foot_index = {foot.name: k for k, foot in enumerate(layout.feet)}
         self._foot_geom_ids = np.array([model.geom(foot.geom).id for foot in layout.feet], dtype=int)
-        self._foot_site_ids = [model.site(foot.frame).id for foot in layout.feet]
+        self._foot_site_ids = np.array([model.site(foot.frame).id for foot in layout.feet], dtype=int)
         self._wrist_adr = {w.name: (self._sensor_adr(w.force_sensor), self._sensor_adr(w.torque_sensor)) for w in layout.wrists}
         self._wrist_sites = {w.name: model.site(w.frame).id for w in layout.wrists}
         # Per hand, which geoms belong to it (a geom of any body in the hand's subtree): a contact's look-up.
@@ -204,7 +204,8 @@ class SensorSuite:
 
     def foot_wrenches(self, data: mujoco.MjData) -> tuple[Wrench, ...]:
         """Every sole's wrench (in the layout's order): what the floor, or anything touching it, exerts on the
-        sole, in the sole frame, about its origin. One pass over the contacts for all the feet."""
+        sole, in the sole frame, about its origin. One pass over the contacts for all the feet, in a few
+        array operations (a contact between two soles counts for both, with opposite signs)."""
         model = self._model
         ncon = int(data.ncon)
         feet = self._foot_geom_ids
@@ -216,20 +217,22 @@ class SensorSuite:
         signs = (pairs[:, 1:2] == feet).astype(float) - (pairs[:, 0:1] == feet)
         rows = np.flatnonzero(signs.any(axis=1))
         n = len(rows)
-        local = np.empty((n, 6))  # each contact's force and torque in its contact frame (normal, tangents)
+        local = np.empty((n, 2, 3))  # each contact's force and torque in its contact frame (normal, tangents)
         for j, i in enumerate(rows.tolist()):
-            mujoco.mj_contactForce(model, data, i, local[j])
+            mujoco.mj_contactForce(model, data, i, local[j].reshape(6))
         frames = contact.frame[rows].reshape(n, 3, 3)  # rows of each frame: normal (geom1 -> geom2), tangents
-        on_geom2 = np.matmul(local.reshape(n, 2, 3), frames)  # (n, 2, 3): frame.T @ force, frame.T @ torque
+        on_geom2 = np.matmul(local, frames)  # (n, 2, 3) in world axes: frame.T @ force, frame.T @ torque
+        signs = signs[rows].T  # (feet, n)
+        force = signs @ on_geom2[:, 0]  # (feet, 3)
+        # About each sole's origin o: sum s (p x f + m) - o x sum s f, with p each contact's position.
         positions = contact.pos[rows]
-        wrenches = []
-        for k, site in enumerate(self._foot_site_ids):
-            sign = signs[rows, k:k + 1]
-            f = sign * on_geom2[:, 0]
-            torque = _cross(positions - data.site_xpos[site], f) + sign * on_geom2[:, 1]
-            rotation = data.site_xmat[site].reshape(3, 3)
-            wrenches.append(Wrench(rotation.T @ f.sum(axis=0), rotation.T @ torque.sum(axis=0)))
-        return tuple(wrenches)
+        origins = data.site_xpos[self._foot_site_ids]
+        in_world = np.empty((len(feet), 2, 3))
+        in_world[:, 0] = force
+        in_world[:, 1] = signs @ (_cross(positions, on_geom2[:, 0]) + on_geom2[:, 1]) - _cross(origins, force)
+        rotations = data.site_xmat[self._foot_site_ids].reshape(-1, 3, 3)  # sole frame -> world
+        in_sole = np.matmul(in_world, rotations)  # (feet, 2, 3): R.T @ force, R.T @ torque
+        return tuple(Wrench(w[0], w[1]) for w in in_sole)
 
     def foot_wrench(self, data: mujoco.MjData, name: str) -> Wrench:
         """One sole's wrench (see :meth:`foot_wrenches`; reading several feet, call that once instead)."""
@@ -261,10 +264,9 @@ class SensorSuite:
         return HandState(math.sqrt(float(linear.dot(linear))), math.sqrt(float(angular.dot(angular))), touching)
 
 
+_NEXT, _PREVIOUS = np.array([1, 2, 0]), np.array([2, 0, 1])
+
+
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise cross product of two (n, 3) arrays: the products np.cross forms, without its overhead."""
-    out = np.empty_like(a)
-    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
-    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
-    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-    return out
+    """Row-wise cross product of two (n, 3) arrays: the products np.cross forms, in four array operations."""
+    return a[:, _NEXT] * b[:, _PREVIOUS] - a[:, _PREVIOUS] * b[:, _NEXT]
