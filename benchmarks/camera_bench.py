@@ -1,4 +1,4 @@
-"""Camera benchmark, core only (no ROS): what the G1's head camera costs. Prints figures, not a test.
+"""Camera benchmark: what the G1's head camera costs, in the core and through ROS. Prints figures, not a test.
 
 Measured on the standing G1 (its stand keyframe, no controller: the servos' own PD holds it), in
 interleaved rounds (each round measures every row once, so a busy machine slows all rows alike);
@@ -10,7 +10,16 @@ medians of the rounds:
   every 1/30 s of sim time at 320x240 and 640x480: the ratio is what a subscribed 30 Hz camera
   costs the simulation's rate (a sim that renders nothing pays nothing).
 
-Usage: ``make bench-camera`` or ``.venv/bin/python benchmarks/camera_bench.py [--rounds 5] [--seconds 2]``.
+Through ROS (``--ros``, on by default): one ``sim_node`` with the G1, in interleaved windows, medians:
+
+- at real time (real_time_factor 1): the sim process's CPU [% of one core] with nobody subscribed to
+  the camera, and with this process subscribed to ``/head_camera/image_raw`` at 10 Hz 320x240 (the
+  default) and at 30 Hz 640x480; frames received per second of sim time;
+- as fast as possible (real_time_factor 0): the node's real-time factor (its ``~/real_time_factor``
+  reports) without and with the camera subscribed: what a watched camera costs the sim's rate, and
+  that an unwatched one costs nothing.
+
+Usage: ``make bench-camera`` or ``.venv/bin/python benchmarks/camera_bench.py [--rounds 5] [--seconds 2] [--no-ros]``.
 """
 
 from __future__ import annotations
@@ -65,6 +74,7 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=5, help="interleaved rounds (medians are printed)")
     parser.add_argument("--seconds", type=float, default=2.0, help="wall seconds per frame-rate measurement")
     parser.add_argument("--sim-seconds", type=float, default=4.0, help="sim seconds per stepping measurement")
+    parser.add_argument("--no-ros", dest="ros", action="store_false", help="skip the part through ROS (sim_node)")
     args = parser.parse_args()
 
     robot = robot_models.load("g1")
@@ -102,8 +112,79 @@ def main() -> None:
         with_camera = median[f"physics + {size[0]}x{size[1]} at 30 Hz sim [steps/s]"]
         print(f"physics-only / with {size[0]}x{size[1]} at 30 Hz: {physics / with_camera:.2f} "
               f"(the sim runs {with_camera / physics:.0%} as fast while the camera is subscribed)")
+    if args.ros:
+        ros_costs(args.rounds, args.seconds * 2)
     print(f"(benchmark wall time {time.perf_counter() - started:.0f} s; load average now {os.getloadavg()[0]:.1f} "
           f"on {os.cpu_count()} cores)")
+
+
+ROS_SETTINGS = {"unwatched": None, "320x240 at 10 Hz": (320, 240, 10.0), "640x480 at 30 Hz": (640, 480, 30.0)}
+
+
+def process_cpu_seconds(pid: int) -> float:
+    with open(f"/proc/{pid}/stat") as handle:
+        fields = handle.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def ros_costs(rounds: int, seconds: float) -> None:
+    """The sim node's CPU at real time and its rate as fast as possible, with the camera unwatched and watched."""
+    from rclpy.qos import DurabilityPolicy, QoSProfile
+    from sensor_msgs.msg import Image
+    from std_msgs.msg import Float64
+
+    from nodes.processes import running
+    from sim_client.session import RosSession
+    from sim_interfaces.msg import CameraSettings
+
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    cpu: dict[str, list[float]] = {name: [] for name in ROS_SETTINGS}
+    frames: dict[str, list[float]] = {name: [] for name in ROS_SETTINGS}
+    rtf: dict[str, list[float]] = {name: [] for name in ROS_SETTINGS}
+    with RosSession("camera_bench", use_sim_time=False) as session:
+        settings = session.node.create_publisher(CameraSettings, "/sim/head_camera/settings", latched)
+        for factor in (1.0, 0.0):
+            args = ["sim_node", "--ros-args", "-p", "robot:=g1", "-p", f"real_time_factor:={factor}"]
+            with running(args) as node:
+                reports = session.record(Float64, "/sim/real_time_factor", keep=1000)
+                session.wait_for(lambda: reports.count >= 2, 60.0, "the node's first reports")  # noqa: B023
+                for _ in range(rounds):
+                    for name, setting in ROS_SETTINGS.items():
+                        images = None
+                        if setting is not None:
+                            width, height, rate = setting
+                            settings.publish(CameraSettings(camera="head_camera", exposure_ms=10.0, rate_hz=rate,
+                                                            width=width, height=height))
+                            images = session.record(Image, "/head_camera/image_raw", keep=2)
+                            session.wait_for(lambda: images.count >= 3 and images.latest.width == width,  # noqa: B023
+                                             60.0, f"frames at {name}")
+                        first = images.count if images is not None else 0
+                        stamp0 = images.latest.header.stamp if images is not None else None
+                        seen = reports.count
+                        cpu0, wall0 = process_cpu_seconds(node.process.pid), time.monotonic()
+                        session.wait_for(lambda: reports.count >= seen + max(2, round(seconds)), 60.0,  # noqa: B023
+                                         "the node's reports")
+                        wall = time.monotonic() - wall0
+                        if factor == 1.0:
+                            cpu[name].append(100.0 * (process_cpu_seconds(node.process.pid) - cpu0) / wall)
+                        else:
+                            rtf[name].append(statistics.median(m.data for m in reports.messages()[seen + 1:]))
+                        if images is not None and stamp0 is not None and factor == 1.0:
+                            last = images.latest.header.stamp
+                            span = (last.sec - stamp0.sec) + (last.nanosec - stamp0.nanosec) * 1e-9
+                            frames[name].append((images.count - first) / span if span > 0 else 0.0)
+                        if images is not None:
+                            images.stop()
+                reports.stop()
+    print(f"\nThrough ROS: sim_node with the G1 standing, {rounds} interleaved rounds, medians")
+    print(f"{'camera':20} {'sim CPU at rtf 1 [%]':>22} {'frames per sim s':>18} {'rtf as fast as possible':>25}")
+    for name in ROS_SETTINGS:
+        received = f"{statistics.median(frames[name]):18.1f}" if frames[name] else f"{'-':>18}"
+        print(f"{name:20} {statistics.median(cpu[name]):22.1f} {received} {statistics.median(rtf[name]):25.2f}")
+    unwatched = statistics.median(rtf["unwatched"])
+    for name in list(ROS_SETTINGS)[1:]:
+        print(f"rtf unwatched / watched at {name}: {unwatched / statistics.median(rtf[name]):.2f}")
 
 
 if __name__ == "__main__":
