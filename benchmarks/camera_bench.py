@@ -30,6 +30,7 @@ import os
 import statistics
 import time
 from collections.abc import Callable
+from typing import Any
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -127,6 +128,15 @@ def process_cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def _width(images: Any) -> int:
+    return -1 if images.latest is None else int(images.latest.width)
+
+
+def _stamp_s(images: Any) -> float:
+    stamp = images.latest.header.stamp
+    return float(stamp.sec + stamp.nanosec * 1e-9)
+
+
 def ros_costs(rounds: int, seconds: float) -> None:
     """The sim node's CPU at real time and its rate as fast as possible, with the camera unwatched and watched."""
     from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -156,11 +166,12 @@ def ros_costs(rounds: int, seconds: float) -> None:
                             width, height, rate = setting
                             settings.publish(CameraSettings(camera="head_camera", exposure_ms=10.0, rate_hz=rate,
                                                             width=width, height=height))
-                            images = session.record(Image, "/head_camera/image_raw", keep=2)
-                            session.wait_for(lambda: images.count >= 3 and images.latest.width == width,  # noqa: B023
+                            recorder = session.record(Image, "/head_camera/image_raw", keep=2)
+                            session.wait_for(lambda: recorder.count >= 3 and _width(recorder) == width,  # noqa: B023
                                              60.0, f"frames at {name}")
+                            images = recorder
                         first = images.count if images is not None else 0
-                        stamp0 = images.latest.header.stamp if images is not None else None
+                        stamp0 = _stamp_s(images) if images is not None else 0.0
                         seen = reports.count
                         cpu0, wall0 = process_cpu_seconds(node.process.pid), time.monotonic()
                         session.wait_for(lambda: reports.count >= seen + max(2, round(seconds)), 60.0,  # noqa: B023
@@ -170,9 +181,8 @@ def ros_costs(rounds: int, seconds: float) -> None:
                             cpu[name].append(100.0 * (process_cpu_seconds(node.process.pid) - cpu0) / wall)
                         else:
                             rtf[name].append(statistics.median(m.data for m in reports.messages()[seen + 1:]))
-                        if images is not None and stamp0 is not None and factor == 1.0:
-                            last = images.latest.header.stamp
-                            span = (last.sec - stamp0.sec) + (last.nanosec - stamp0.nanosec) * 1e-9
+                        if images is not None and factor == 1.0:
+                            span = _stamp_s(images) - stamp0
                             frames[name].append((images.count - first) / span if span > 0 else 0.0)
                         if images is not None:
                             images.stop()
