@@ -42,6 +42,7 @@ import json
 import os
 import pathlib
 import random
+import re
 import struct
 import subprocess
 import sys
@@ -62,6 +63,7 @@ RESULT_S = 30.0  # [s] deadline of a goal's result (a 0.3 m step or an arm reach
 LOST_S = 120.0  # [s] a request not answered within this long is lost
 SIM_JOINT_HISTORY = 1000  # /joint_states states /sim's reliable keep-last writer keeps (nodes/sim_node.py)
 STALL_WINDOW_S = 5.0  # [s] before a hole in /joint_states, where the listener's longest stall is looked for
+CLOSE_S = 20.0  # [s] a client's ROS session gets this long to close after it reported
 CLIENT_QUEUE = 1000  # responses a client's service readers keep (rclpy's default: 10)
 
 
@@ -89,6 +91,7 @@ class Counts:
 
     def __init__(self) -> None:
         self.lock = threading.Lock()
+        self.final = threading.Event()
         self.sent = self.succeeded = self.preempted = self.failed = self.rejected = 0
         self.request_late = self.request_lost = self.result_late = self.result_lost = 0
         self.param_calls = self.param_failures = self.param_late = self.param_lost = 0
@@ -110,7 +113,7 @@ class Counts:
 
     def as_json(self) -> str:
         with self.lock:
-            return json.dumps({key: value for key, value in vars(self).items() if key != "lock"})
+            return json.dumps({key: value for key, value in vars(self).items() if key not in ("lock", "final")})
 
 
 def arm_goal(rng: random.Random) -> Any:
@@ -202,7 +205,9 @@ def client_loop(index: int, stop: threading.Event, counts: Counts, started: floa
                 counts.add(preempted=1)
             else:
                 counts.add(failed=1)
-                counts.note("failures", f"{action_type.__name__} {code}: {outcome.result.error_msg[:70]}")
+                # Grouped by code and wording (numbers blanked): "MoveArm 2: unreachable: IK converged # mm ..."
+                wording = re.sub(r"-?\d+(\.\d+)?", "#", outcome.result.error_msg)[:70]
+                counts.note("failures", f"{action_type.__name__} {code}: {wording}")
             speed = round(rng.uniform(0.2, 0.6), 2)
             answer = param_call(set_client, SetParameters.Request(parameters=[Parameter(
                 name="walking_speed", value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=speed))]),
@@ -214,6 +219,10 @@ def client_loop(index: int, stop: threading.Event, counts: Counts, started: floa
             if answer is not None and len(answer.values) != 1:
                 counts.add(param_failures=1)
                 counts.note("param_problems", "get: no value")
+        # Reported before the session closes: rclpy's shutdown hung once in 10 clients (Context._logging_fini,
+        # with the interpreter lock held), and the parent then takes this line and ends the process.
+        print(counts.as_json(), flush=True)
+        counts.final.set()
 
 
 def run_client(index: int) -> None:
@@ -224,8 +233,9 @@ def run_client(index: int) -> None:
     worker.start()
     sys.stdin.readline()  # the soak's end
     stop.set()
-    worker.join(3 * LOST_S)  # the goal in flight ends, or is counted lost
-    print(counts.as_json(), flush=True)
+    if not counts.final.wait(3 * LOST_S):  # the goal in flight ends, or is counted lost
+        print(counts.as_json(), flush=True)  # the loop itself is stuck or failed: what was counted so far
+    worker.join(CLOSE_S)
 
 
 def stamp_of(data: bytes) -> int:
@@ -259,8 +269,19 @@ def run_listener(wall_rate_hz: float) -> None:
         begin, cpu, wall = len(stamps), time.process_time(), time.monotonic()
         sys.stdin.readline()  # the listening window: to the soak's end
         end, cpu, wall = len(stamps), time.process_time() - cpu, time.monotonic() - wall
-    figures = joint_figures(arrivals[begin:end].tolist(), stamps[begin:end].tolist(), JOINT_RATE_HZ)
-    print(json.dumps({**figures, "cpu_share": cpu / wall}), flush=True)
+        figures = joint_figures(arrivals[begin:end].tolist(), stamps[begin:end].tolist(), JOINT_RATE_HZ)
+        print(json.dumps({**figures, "cpu_share": cpu / wall}), flush=True)  # before the close (see client_loop)
+
+
+def report_of(child: subprocess.Popen[str], deadline: float) -> dict[str, Any]:
+    """The JSON report on the last line a child printed; a child still running at ``deadline`` [s, monotonic] is killed."""
+    try:
+        out, _ = child.communicate(timeout=max(1.0, deadline - time.monotonic()))
+    except subprocess.TimeoutExpired:  # it reported, then hung closing its ROS session (or never reported)
+        child.kill()
+        out, _ = child.communicate()
+    lines = (out or "").strip().splitlines()
+    return dict(json.loads(lines[-1])) if lines else {}
 
 
 def joint_figures(arrivals: list[float], stamps_ns: list[int], rate_hz: float) -> dict[str, Any]:
@@ -370,12 +391,14 @@ def main() -> int:
             assert child.stdin is not None  # opened as a pipe
             child.stdin.write("stop\n")  # the end: the clients finish their goal in flight and report
             child.stdin.flush()
-        joints = json.loads(listener.communicate(timeout=300.0)[0].strip().splitlines()[-1])
-        outputs = [json.loads((c.communicate(timeout=4 * LOST_S)[0] or "{}").strip().splitlines()[-1]) for c in clients]
+        ending = time.monotonic() + 3 * LOST_S + CLOSE_S + 30.0
+        joints = report_of(listener, ending)
+        outputs = [report_of(client, ending) for client in clients]
         alive = bringup.alive()
     finally:
         bringup.stop(timeout=30.0)
-    total: dict[str, Any] = {}
+    reported = sum(1 for output in outputs if output)
+    total: dict[str, Any] = json.loads(Counts().as_json())
     for output in outputs:
         for key, value in output.items():
             if isinstance(value, dict):
@@ -383,10 +406,11 @@ def main() -> int:
                 for entry, count in value.items():
                     table[entry] = table.get(entry, 0) + count
             else:
-                total[key] = total.get(key, 0 if isinstance(value, int) else []) + value
+                total[key] = total[key] + value
     print(f"soak: {options.clients} client processes, {options.minutes:g} min; /sim at real_time_factor {options.rtf:g}, "
           f"joint_state_rate {JOINT_RATE_HZ:g} Hz of sim time (one per 2 ms physics step: no more exist) = "
-          f"{JOINT_RATE_HZ * options.rtf:g} Hz of wall time asked; bringup {'alive' if alive else 'DIED'} to the end")
+          f"{JOINT_RATE_HZ * options.rtf:g} Hz of wall time asked; bringup {'alive' if alive else 'DIED'} to the end; "
+          f"{reported} of {options.clients} clients reported")
     print(f"{'process':<20} {'RSS first [MiB]':>16} {'RSS end [MiB]':>14} {'growth':>8} {'CPU [% of a core]':>18}")
     rows = sorted(name for name in last if not name.startswith("client "))  # the listener grows: it keeps every arrival
     for name in rows:
@@ -412,21 +436,25 @@ def main() -> int:
           f"{total['param_lost']}; response {percentiles(total['param_s'])}")
     for key, count in sorted(total["param_problems"].items(), key=lambda item: -item[1])[:8]:
         print(f"  {count:>5} x {key}")
-    print(f"/joint_states: received {joints['distinct']} of {joints['published']} published (stamps checked: "
-          f"{joints['lost']} lost, {joints['duplicates']} duplicated, {joints['reordered']} reordered, "
-          f"{joints['off_grid']} off the 2 ms grid) over {joints['wall_s']:.0f} s; {joints['wall_rate_hz']:.0f} Hz of "
-          f"wall time at real_time_factor {joints['rtf']:.3f}; listener CPU {100 * joints['cpu_share']:.0f}% "
-          "of a core")
-    if joints["hole_count"]:
-        history_s = SIM_JOINT_HISTORY / max(joints["wall_rate_hz"], 1.0)
-        print(f"  {joints['hole_count']} holes (at wall second, states missing, the listener's longest stall in the "
-              f"{STALL_WINDOW_S:g} s before [ms]): {', '.join(str(tuple(hole)) for hole in joints['holes'])}; /sim's "
-              f"writer keeps {SIM_JOINT_HISTORY} states = {history_s:.1f} s at the achieved rate: a reader stalled "
-              "longer loses what it had not acknowledged")
-    print(f"  arrival gap median {joints['gap_median_ms']:.2f} ms, p99 {joints['gap_p99_ms']:.2f} ms, max "
-          f"{joints['gap_max_ms']:.1f} ms; jitter against a steady clock (fitted per second) p50 "
-          f"{joints['jitter_p50_ms']:.2f} ms, p99 "
-          f"{joints['jitter_p99_ms']:.2f} ms, max {joints['jitter_max_ms']:.1f} ms")
+    if not joints:
+        print("/joint_states: the listener did not report")
+        joints = {"lost": -1, "wall_rate_hz": 0.0}
+    else:
+        print(f"/joint_states: received {joints['distinct']} of {joints['published']} published (stamps checked: "
+              f"{joints['lost']} lost, {joints['duplicates']} duplicated, {joints['reordered']} reordered, "
+              f"{joints['off_grid']} off the 2 ms grid) over {joints['wall_s']:.0f} s; {joints['wall_rate_hz']:.0f} Hz of "
+              f"wall time at real_time_factor {joints['rtf']:.3f}; listener CPU {100 * joints['cpu_share']:.0f}% "
+              "of a core")
+        if joints["hole_count"]:
+            history_s = SIM_JOINT_HISTORY / max(joints["wall_rate_hz"], 1.0)
+            print(f"  {joints['hole_count']} holes (at wall second, states missing, the listener's longest stall in the "
+                  f"{STALL_WINDOW_S:g} s before [ms]): {', '.join(str(tuple(hole)) for hole in joints['holes'])}; /sim's "
+                  f"writer keeps {SIM_JOINT_HISTORY} states = {history_s:.1f} s at the achieved rate: a reader stalled "
+                  "longer loses what it had not acknowledged")
+        print(f"  arrival gap median {joints['gap_median_ms']:.2f} ms, p99 {joints['gap_p99_ms']:.2f} ms, max "
+              f"{joints['gap_max_ms']:.1f} ms; jitter against a steady clock (fitted per second) p50 "
+              f"{joints['jitter_p50_ms']:.2f} ms, p99 "
+              f"{joints['jitter_p99_ms']:.2f} ms, max {joints['jitter_max_ms']:.1f} ms")
     growth = max(100 * (last[name][0] / first[name][0] - 1) for name in rows if name != "listener")
     lost = total["request_lost"] + total["result_lost"] + total["param_lost"]
     print(f"verdict: RSS growth at most {growth:.1f}% per node of bringup (limit 5%); lost {lost} requests and results, "
