@@ -20,7 +20,9 @@ the nodes of another checkout, e.g. ``git worktree add /tmp/base <commit>``, int
      and walking (``/cmd_vel`` 0.3 m/s), without and with raw subscribers (as the MCAP recorder subscribes)
      to /imu, both foot wrenches, /sim/hand_sensors and /sim/battery; interleaved windows, medians of rounds.
  (e) the ``walk_2m`` scenario, lock-stepped, without and with ``--record`` (an MCAP of every topic, so every
-     sensor stream is subscribed): its wall/sim from report.json; medians of rounds.
+     sensor stream is subscribed): its wall/sim from report.json, and the CPU time per sim second of all its
+     processes (runner, /sim, servers) and of /sim alone while its steps ran (less sensitive than wall time
+     to what else the machine runs); medians of rounds.
 
 Usage: ``make bench-sensors`` or ``.venv/bin/python benchmarks/sensors_bench.py [--rounds 5] [--distance 20]
 [--parts abcde] [--baseline /tmp/base]``.
@@ -265,20 +267,67 @@ def lockstep_costs(session: RosSession, versions: dict[str, str | None], rounds:
     return costs
 
 
-def scenario_wall_per_sim(versions: dict[str, str | None], rounds: int) -> dict[tuple[str, str], list[float]]:
-    """wall/sim of walk_2m (lock-stepped) per (version, plain|recorded), one value per round."""
-    ratios: dict[tuple[str, str], list[float]] = {}
+def tree_cpu_s(root: int) -> dict[str, float]:
+    """CPU [s] so far of a process and its descendants, summed per program name (``sim_node``, ``scenario``, ...)."""
+    parents: dict[int, int] = {}
+    cpu: dict[int, tuple[str, float]] = {}
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        with contextlib.suppress(OSError):
+            with open(f"/proc/{entry}/stat") as handle:
+                fields = handle.read().rsplit(")", 1)[1].split()
+            with open(f"/proc/{entry}/cmdline") as handle:
+                argv = handle.read().split("\0")
+            name = pathlib.Path(argv[1] if len(argv) > 1 and "python" in argv[0] else argv[0]).name
+            parents[int(entry)] = int(fields[1])
+            cpu[int(entry)] = (name, (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK"))
+    totals: dict[str, float] = {}
+    for pid, (name, seconds) in cpu.items():
+        ancestor = pid
+        while ancestor not in (root, 0, 1) and ancestor in parents:
+            ancestor = parents[ancestor]
+        if ancestor == root:
+            totals[name] = totals.get(name, 0.0) + seconds
+    return totals
+
+
+def run_walk_2m(record: bool) -> tuple[float, float, float]:
+    """One lock-stepped walk_2m: (wall/sim from its report, CPU [s] per sim second of all its processes while the
+    steps ran, the same of /sim alone)."""
+    with tempfile.TemporaryDirectory(prefix="sensors_bench_") as out:
+        process = subprocess.Popen([str(BIN / "scenario"), "run", "walk_2m", *(["--record"] if record else []), "--out", out],
+                                   cwd=out, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=dict(os.environ))
+        stdout = process.stdout
+        assert stdout is not None
+        start: dict[str, float] = {}
+        end: dict[str, float] = {}
+        line = ""
+        for char in iter(lambda: stdout.read(1), ""):  # progress lines end in \r, others in \n
+            if char not in "\r\n":
+                line += char
+                continue
+            if not start and "[1/" in line:  # the first step starts (nodes up, reset done)
+                start = tree_cpu_s(process.pid)
+            if not end and "wall/sim" in line:  # the verdict line, right after the run
+                end = tree_cpu_s(process.pid)
+            line = ""
+        assert process.wait() == 0 and start and end, "walk_2m failed"
+        report = json.loads(next(pathlib.Path(out).glob("walk_2m-*/report.json")).read_text())
+    sim_s = float(report["sim_time_s"])
+    used = {name: end[name] - start.get(name, 0.0) for name in end}
+    return float(report["wall_per_sim"]), sum(used.values()) / sim_s, used.get("sim_node", math.nan) / sim_s
+
+
+def scenario_costs(versions: dict[str, str | None], rounds: int) -> dict[tuple[str, str], list[tuple[float, float, float]]]:
+    """walk_2m per (version, plain|recorded): one (wall/sim, CPU/sim of all, CPU/sim of /sim) per round."""
+    costs: dict[tuple[str, str], list[tuple[float, float, float]]] = {}
     for round_index in range(rounds):
         for version, path in versions.items():
-            modes = ("plain", "recorded") if round_index % 2 == 0 else ("recorded", "plain")
-            for mode in modes:
-                with checkout(path), tempfile.TemporaryDirectory(prefix="sensors_bench_") as out:
-                    record = ["--record"] if mode == "recorded" else []
-                    subprocess.run([str(BIN / "scenario"), "run", "walk_2m", *record, "--out", out], cwd=out, check=True,
-                                   stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT, env=dict(os.environ))
-                    report = json.loads(next(pathlib.Path(out).glob("walk_2m-*/report.json")).read_text())
-                ratios.setdefault((version, mode), []).append(float(report["wall_per_sim"]))
-    return ratios
+            for mode in (("plain", "recorded") if round_index % 2 == 0 else ("recorded", "plain")):
+                with checkout(path):
+                    costs.setdefault((version, mode), []).append(run_walk_2m(mode == "recorded"))
+    return costs
 
 
 def print_lockstep(costs: dict[tuple[str, str, str], list[float]], versions: dict[str, str | None], rounds: int) -> None:
@@ -293,12 +342,19 @@ def print_lockstep(costs: dict[tuple[str, str, str], list[float]], versions: dic
                   f"{', '.join(f'{e:.0f}' for e in extra)})", flush=True)
 
 
-def print_scenario(ratios: dict[tuple[str, str], list[float]], versions: dict[str, str | None], rounds: int) -> None:
+def print_scenario(costs: dict[tuple[str, str], list[tuple[float, float, float]]], versions: dict[str, str | None],
+                   rounds: int) -> None:
     for version in versions:
-        plain, recorded = statistics.median(ratios[(version, "plain")]), statistics.median(ratios[(version, "recorded")])
-        print(f"[g1] (e) walk_2m lock-stepped, {version}: wall/sim {plain:.2f} without recording, {recorded:.2f} with "
-              f"--record (x{recorded / plain:.2f}; medians of {rounds} interleaved rounds: "
-              f"{', '.join(f'{r:.2f}' for r in ratios[(version, 'recorded')])} recorded)", flush=True)
+        plain, recorded = costs[(version, "plain")], costs[(version, "recorded")]
+
+        def median(runs: list[tuple[float, float, float]], i: int) -> float:
+            return statistics.median(run[i] for run in runs)
+
+        print(f"[g1] (e) walk_2m lock-stepped, {version} (medians of {rounds} interleaved rounds): wall/sim "
+              f"{median(plain, 0):.2f} without recording, {median(recorded, 0):.2f} with --record (each: "
+              f"{', '.join(f'{run[0]:.2f}' for run in recorded)}); CPU per sim second of all its processes while the "
+              f"steps ran {median(plain, 1):.2f} s -> {median(recorded, 1):.2f} s with --record, of /sim alone "
+              f"{median(plain, 2):.2f} s -> {median(recorded, 2):.2f} s", flush=True)
 
 
 def main() -> None:
@@ -335,7 +391,7 @@ def main() -> None:
     if "c" in options.parts:
         print(f"[g1] {walk_drain(spec, options.distance)}", flush=True)
     if "e" in options.parts:
-        print_scenario(scenario_wall_per_sim(versions, options.scenario_rounds), versions, options.scenario_rounds)
+        print_scenario(scenario_costs(versions, options.scenario_rounds), versions, options.scenario_rounds)
 
 
 if __name__ == "__main__":
