@@ -27,7 +27,8 @@ client and each client throws the others' away only as it reads them, so with rc
 Every request is waited for up to :data:`LOST_S` wall seconds: answered within its deadline it is on
 time, answered later it is *late* (counted and printed apart), never answered it is *lost*. Goals a
 newer goal on the same resource preempts (10 clients share the G1's legs and two arms) end PREEMPTED,
-by design; they are counted apart from failures. A MoveArm target is given in the pelvis frame and
+by design; they are counted apart from failures. A client whose Walk ends FELL resets /sim (the fall
+is counted), so one fall does not fail every later goal. A MoveArm target is given in the pelvis frame and
 fixed in the world when the goal starts, so an arm goal running while another client's Walk moves the
 robot can end UNREACHABLE: a failure with its reason, not a loss.
 
@@ -98,6 +99,7 @@ class Counts:
         self.sent = self.succeeded = self.preempted = self.failed = self.rejected = 0
         self.request_late = self.request_lost = self.result_late = self.result_lost = 0
         self.param_calls = self.param_failures = self.param_late = self.param_lost = 0
+        self.falls = self.resets = 0
         self.failures: dict[str, int] = {}
         self.param_problems: dict[str, int] = {}
         self.goal_response_s: list[float] = []
@@ -139,6 +141,7 @@ def client_loop(index: int, stop: threading.Event, counts: Counts, started: floa
 
     from sim_client import RosSession
     from sim_interfaces.action import MoveArm, Walk
+    from sim_interfaces.srv import Reset
 
     rng = random.Random(index)
     # A server's responses go to every client's response reader, and only there are the others' thrown
@@ -151,9 +154,11 @@ def client_loop(index: int, stop: threading.Event, counts: Counts, started: floa
                      for action_type, name in ((Walk, "/walk"), (MoveArm, "/move_arm")))
         set_client = session.node.create_client(SetParameters, "/locomotion/set_parameters", qos_profile=deep)
         get_client = session.node.create_client(GetParameters, "/sim/get_parameters", qos_profile=deep)
+        reset_client = session.node.create_client(Reset, "/sim/reset", qos_profile=deep)
         for ready, name in ((walk.server_is_ready, "/walk"), (arm.server_is_ready, "/move_arm"),
                             (set_client.service_is_ready, "/locomotion/set_parameters"),
-                            (get_client.service_is_ready, "/sim/get_parameters")):
+                            (get_client.service_is_ready, "/sim/get_parameters"),
+                            (reset_client.service_is_ready, "/sim/reset")):
             session.wait_for(ready, LOST_S, name)
 
         def param_call(client: Any, request: Any, what: str) -> Any:
@@ -202,6 +207,11 @@ def client_loop(index: int, stop: threading.Event, counts: Counts, started: floa
             if waited > RESULT_S:
                 counts.add(result_late=1)
             code = outcome.result.error_code
+            if action_type is Walk and code == Walk.Result.FELL:
+                # Stood up again, or every later Walk ends FELL and the rest of the run measures nothing.
+                counts.add(falls=1)
+                answer, _ = wait_timed(reset_client.call_async(Reset.Request()), LOST_S)
+                counts.add(resets=1 if answer is not None and answer.success else 0)
             if code == action_type.Result.SUCCESS:
                 counts.add(succeeded=1)
             elif code == action_type.Result.PREEMPTED:
@@ -381,7 +391,7 @@ def main() -> int:
             nodes = child_processes(bringup.process.pid)
         watched = {**nodes, "bringup": bringup.process.pid, "listener": listener.pid}
         watched.update({f"client {i}": client.pid for i, client in enumerate(clients)})
-        warm = min(60.0, seconds / 5)
+        warm = min(60.0, max(30.0, seconds / 5))  # the nodes started and allocated (each re-executes itself once)
         time.sleep(warm)  # the first sample after start-up allocation
         first = {name: process_stats(pid) for name, pid in watched.items()}
         first_wall = time.monotonic()
@@ -431,7 +441,8 @@ def main() -> int:
           f"client's goal), failed {total['failed']}, rejected {total['rejected']}; late {total['request_late']} "
           f"responses (> {GOAL_ANSWER_S:g} s) / {total['result_late']} results (> {RESULT_S:g} s); lost "
           f"{total['request_lost']} requests / {total['result_lost']} results (nothing in {LOST_S:g} s)")
-    print(f"  goal response {percentiles(total['goal_response_s'])}; result {percentiles(total['result_s'])}")
+    print(f"  goal response {percentiles(total['goal_response_s'])}; result {percentiles(total['result_s'])}; "
+          f"the G1 fell {total['falls']} times (a client saw FELL and reset /sim: {total['resets']} resets)")
     for key, count in sorted(total["failures"].items(), key=lambda item: -item[1])[:8]:
         print(f"  {count:>5} x {key}")
     print(f"parameter calls: {total['param_calls']} (walking_speed sets on /locomotion, reads on /sim), "
