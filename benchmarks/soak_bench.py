@@ -460,10 +460,10 @@ def main() -> int:
               f"wall time at real_time_factor {joints['rtf']:.3f}; listener CPU {100 * joints['cpu_share']:.0f}% "
               "of a core")
         if joints["hole_count"]:
-            history_s = SIM_JOINT_HISTORY / max(joints["wall_rate_hz"], 1.0)
+            history_s = SIM_JOINT_HISTORY * joints["wall_s"] / max(joints["published"], 1)  # at the rate published
             print(f"  {joints['hole_count']} holes (at wall second, states missing, the listener's longest stall in the "
                   f"{STALL_WINDOW_S:g} s before [ms]): {', '.join(str(tuple(hole)) for hole in joints['holes'])}; /sim's "
-                  f"writer keeps {SIM_JOINT_HISTORY} states = {history_s:.1f} s at the achieved rate: a reader stalled "
+                  f"writer keeps {SIM_JOINT_HISTORY} states = {history_s:.1f} s of what it published: a reader stalled "
                   "longer loses what it had not acknowledged")
         print(f"  arrival gap median {joints['gap_median_ms']:.2f} ms, p99 {joints['gap_p99_ms']:.2f} ms, max "
               f"{joints['gap_max_ms']:.1f} ms; jitter against a steady clock (fitted per second) p50 "
