@@ -7,7 +7,7 @@ STAMPS := $(VENV)/.stamps
 INTERFACE_FILES := $(shell find interfaces -type f)
 export MUJOCO_GL ?= egl
 
-.PHONY: setup lint demo test test-fast bench bench-sim bench-walk bench-arm bench-nav bench-idle bench-scenario bench-response bench-locomotion bench-sensors bench-soak clean
+.PHONY: setup lint demo test test-fast bench bench-sim bench-walk bench-arm bench-nav bench-idle bench-scenario bench-response bench-locomotion bench-sensors bench-soak bench-camera clean
 
 setup: $(STAMPS)/project
 
@@ -48,7 +48,7 @@ test: setup lint
 test-fast: setup
 	$(PY) -m pytest $(PYTEST_PARALLEL) -m "not slow"
 
-bench: bench-sim bench-walk bench-arm bench-nav bench-idle bench-scenario bench-response bench-locomotion bench-sensors  ## every benchmark; figures are ratios measured in one run
+bench: bench-sim bench-walk bench-arm bench-nav bench-idle bench-scenario bench-response bench-locomotion bench-sensors bench-camera  ## every benchmark; figures are ratios measured in one run
 
 bench-sim: setup
 	$(PY) benchmarks/sim_bench.py
