@@ -18,6 +18,7 @@ as a sensor does.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import queue
 import struct
@@ -52,6 +53,7 @@ HEIGHT_RANGE_PX = (16, 720)
 DEFAULT_SETTINGS = (NOMINAL_EXPOSURE_MS, 10.0, 320, 240)  # exposure [ms], rate [Hz], width, height [px]
 IMAGE_QOS = QoSProfile(depth=4)  # a frame is ~0.2-0.9 MB: a slow reader gets the latest few, not seconds of them
 NANOSECONDS_PER_SECOND = 1_000_000_000
+SUBMIT_WAIT_S = 10.0  # longest wait [wall s] for the frame in flight; a CPU frame takes tens of ms
 _STAMP_SENTINEL = struct.pack("<iI", 0x2BADF00D, 0x1CEB00DA)
 
 
@@ -253,11 +255,15 @@ class _RenderThread:
         if self._thread is None:
             self._thread = threading.Thread(target=self._run, name="camera", daemon=True)
             self._thread.start()
-        self._frames.put(frame)
+        try:
+            self._frames.put(frame, timeout=SUBMIT_WAIT_S)
+        except queue.Full:  # the render thread is gone (the context shut down): the physics must not wait for it
+            frame.camera.failed = "the render thread stopped"
 
     def stop(self) -> None:
         if self._thread is not None:
-            self._frames.put(None)
+            with contextlib.suppress(queue.Full):  # (a thread that ended with the context takes nothing more)
+                self._frames.put(None, timeout=10.0)
             self._thread.join(timeout=10.0)
             self._thread = None
 
@@ -277,7 +283,13 @@ class _RenderThread:
                     continue
                 if renderer not in renderers:
                     renderers.append(renderer)
-                self._publish(camera, renderer, frame, data)
+                try:
+                    self._publish(camera, renderer, frame, data)
+                except RCLError:
+                    raise
+                except Exception as error:  # noqa: BLE001 - a failed frame must not stop the thread the physics hands frames to
+                    camera.failed = f"{type(error).__name__}: {error}"
+                    self._node.get_logger().error(f"rendering {camera.layout.name} failed ({camera.failed}); its images are off")
         except RCLError:
             if self._node.context.ok():
                 raise
