@@ -53,6 +53,9 @@ from sim_interfaces.srv import Push, Reset, Step
 NODE_NAME = "sim"
 MAX_CHUNK_S = 0.05  # longest stretch of sim time stepped without releasing the lock [s]
 MAX_STEP_REQUEST = 1_000_000
+MAX_STREAM_RATE_HZ = 500.0  # the upper bound of joint_state_rate and clock_rate [Hz of sim time]
+STREAM_HISTORY_S = 10.0  # /clock and /joint_states a reliable writer keeps for a stalled reader [s of sim time]
+STREAM_HISTORY_DEPTH = int(STREAM_HISTORY_S * MAX_STREAM_RATE_HZ)  # 5000 samples: Fast DDS's default max_samples
 
 PARAMETERS = (
     ParameterSpec("robot", "g1", f"robot scene to simulate, one of: {', '.join(robot_models.ROBOT_NAMES)}", read_only=True),
@@ -60,9 +63,9 @@ PARAMETERS = (
     ParameterSpec("autostart", True, "configure and activate the lifecycle node on start", read_only=True),
     ParameterSpec("start_paused", False, "start with the physics paused (use ~/resume or ~/step)", read_only=True),
     ParameterSpec("real_time_factor", 1.0, "sim seconds per wall second; 0 = as fast as possible", 0.0, 1000.0),
-    ParameterSpec("joint_state_rate", 200.0, "/joint_states publish rate [Hz of sim time]", 1.0, 500.0),
+    ParameterSpec("joint_state_rate", 200.0, "/joint_states publish rate [Hz of sim time]", 1.0, MAX_STREAM_RATE_HZ),
     ParameterSpec("clock_rate", 100.0, "/clock publish rate [Hz of sim time]; keep >= the fastest timer of any node on sim time",
-                  10.0, 500.0),
+                  10.0, MAX_STREAM_RATE_HZ),
     ParameterSpec("odom_rate", 30.0, "/odom and odom->base /tf publish rate [Hz of sim time]", 1.0, 500.0),
     ParameterSpec("link_tf_rate", 10.0, "/tf rate of the link transforms [Hz of sim time]; 0 = off", 0.0, 500.0),
     ParameterSpec("state_rate", 30.0, "rate of /objects and controller state topics [Hz of sim time]", 1.0, 500.0),
@@ -188,11 +191,13 @@ class SimNode(LifecycleNode):
         assert self.sim is not None
         sim = self.sim
         # A reliable writer keeps this many samples for a slow reader: stepped as fast as possible, /sim
-        # publishes /joint_states in bursts a recorder on a busy machine must not lose (1000 = 5 s of sim
-        # time at 200 Hz, about 1 MB).
+        # publishes in bursts a recorder on a busy machine must not lose. /clock and /joint_states keep
+        # STREAM_HISTORY_S of sim time at their fastest rate (a reader stalled for less loses nothing),
+        # the other streams 1000 samples (5 s at 200 Hz).
         reliable = QoSProfile(depth=1000)
-        self._clock_pub = self.create_publisher(Clock, "/clock", reliable)
-        self._joint_pub = self.create_publisher(JointState, "/joint_states", reliable)
+        streams = QoSProfile(depth=STREAM_HISTORY_DEPTH)
+        self._clock_pub = self.create_publisher(Clock, "/clock", streams)
+        self._joint_pub = self.create_publisher(JointState, "/joint_states", streams)
         self._odom_pub = self.create_publisher(Odometry, "/odom", reliable)
         self._tf_pub = self.create_publisher(TFMessage, "/tf", QoSProfile(depth=100))
         static_qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)

@@ -25,7 +25,7 @@ from rclpy.action import ActionClient
 from rclpy.action.client import ClientGoalHandle
 from rclpy.parameter import Parameter, parameter_value_to_python
 
-from sim_client.session import RosSession, WaitTimeout
+from sim_client.session import RESPONSE_QOS, RosSession, WaitTimeout
 from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, Walk
 from sim_interfaces.srv import Push
 
@@ -187,7 +187,8 @@ class _ActionClientBase(Generic[GoalT, FeedbackT, ResultT]):
     def __init__(self, session: RosSession, name: str | None = None) -> None:
         self.session = session
         self.name = name or self.default_name
-        self._client = ActionClient(session.node, self.action_type, self.name)
+        self._client = ActionClient(session.node, self.action_type, self.name, goal_service_qos_profile=RESPONSE_QOS,
+                                    result_service_qos_profile=RESPONSE_QOS, cancel_service_qos_profile=RESPONSE_QOS)
         self.error_names = error_code_names(self.action_type.Result)
 
     def sim_now(self) -> float:

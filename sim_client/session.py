@@ -19,8 +19,13 @@ from rclpy.qos import QoSProfile
 from rclpy.task import Future
 
 MsgT = TypeVar("MsgT")
-T = TypeVar("T")
 
+# A client's service readers keep this many responses (rclpy's default is 10). The responses of a
+# server go to all of its clients, and each throws the others' away only as it reads them: with ten
+# clients answered while this one was busy, a queue of 10 lost its own response (the soak benchmark).
+RESPONSE_QOS = QoSProfile(depth=1000)
+
+T = TypeVar("T")
 
 
 def quiet_events() -> SubscriptionEventCallbacks:
@@ -175,14 +180,14 @@ class RosSession:
         key = (srv_type, name)
         client = self._service_clients.get(key)
         if client is None:
-            client = self._service_clients[key] = self.node.create_client(srv_type, name)
+            client = self._service_clients[key] = self.node.create_client(srv_type, name, qos_profile=RESPONSE_QOS)
         self.wait_for(client.service_is_ready, timeout, f"service {name}")
         return self.wait_future(client.call_async(request), timeout, f"response of {name}")
 
     def parameters(self, node_name: str) -> AsyncParameterClient:
         """Client of a node's standard parameter services (what ``ros2 param`` calls)."""
         if node_name not in self._parameter_clients:
-            self._parameter_clients[node_name] = AsyncParameterClient(self.node, node_name)
+            self._parameter_clients[node_name] = AsyncParameterClient(self.node, node_name, qos_profile=RESPONSE_QOS)
         return self._parameter_clients[node_name]
 
     def set_parameter(self, node_name: str, name: str, value: Any, timeout: float = 10.0) -> tuple[bool, str]:

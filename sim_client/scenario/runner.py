@@ -45,7 +45,7 @@ from sim_client.scenario.registry import (
     step_kind,
 )
 from sim_client.scenario.schema import Expectation, Scenario
-from sim_client.session import RosSession, TopicRecorder, WaitTimeout
+from sim_client.session import RESPONSE_QOS, RosSession, TopicRecorder, WaitTimeout
 from sim_interfaces.msg import LocomotionState, ObjectStates
 from sim_interfaces.srv import Push, Reset, Step as StepSrv
 
@@ -176,9 +176,9 @@ class ScenarioRun:
                               if self.camera_name else None)
         self._unwatched = tuple(f"/{name}/{topic}" for name in cameras if name != self.camera_name
                                 for topic in ("image_raw", "camera_info"))
-        self._reset = node.create_client(Reset, "/sim/reset")
-        self._push = node.create_client(Push, "/sim/push")
-        self._step = node.create_client(StepSrv, "/sim/step")
+        self._reset = node.create_client(Reset, "/sim/reset", qos_profile=RESPONSE_QOS)
+        self._push = node.create_client(Push, "/sim/push", qos_profile=RESPONSE_QOS)
+        self._step = node.create_client(StepSrv, "/sim/step", qos_profile=RESPONSE_QOS)
         self._cmd_vel = node.create_publisher(Twist, "/cmd_vel", 10)
         self.clients: dict[str, _ActionClientBase] = {}
         self.goals: dict[str, GoalHandle] = {}
@@ -249,10 +249,13 @@ class ScenarioRun:
             self.mcap.discover()
 
     def _wait_recordings_flow(self) -> None:
-        """Step a little until the recordings receive the sim's streams (subscriptions matched its publishers).
+        """Have the paused sim publish again until the recordings receive its streams (subscriptions matched).
 
         Messages published before a subscription is matched are not delivered; on a loaded machine the
         matching can take a while, and a run stepped as fast as possible would start without them.
+        The sim is not stepped meanwhile: a reset to the keyframe (sim time kept) publishes every stream
+        at once. So the scenario starts at the same sim time however long the matching took (stepping
+        here made the start, and with it the publication grid under the run, depend on the machine's load).
         """
         def flowing() -> bool:
             mcap = self.mcap
@@ -262,8 +265,8 @@ class ScenarioRun:
         deadline = time.monotonic() + STARTUP_WALL_S
         while not flowing():
             if time.monotonic() > deadline:
-                raise StepFailure("no /clock, /joint_states or /odom reached the runner after stepping the sim")
-            self._step_sim(max(1, round(0.01 / self._control_dt)))
+                raise StepFailure("no /clock, /joint_states or /odom reached the runner while the paused sim republished")
+            self._do_reset(self.scenario.keyframe)
             with contextlib.suppress(WaitTimeout):
                 self.session.wait_for(flowing, 0.2, "the recordings to receive the sim's streams")
 
@@ -616,6 +619,7 @@ class ScenarioRun:
             "startup_wall_s": round(result.startup_time, 3),
             "wall_time_s": round(result.wall_time, 3),
             "sim_time_s": round(result.sim_time, 3),
+            "started_at_sim_s": start,  # the sim time the scenario started at (the same in every run)
             "wall_per_sim": round(result.wall_time / result.sim_time, 3) if result.sim_time > 0 else None,
             "expectations": [asdict(v) for v in result.verdicts],
             "failures": result.failures,
