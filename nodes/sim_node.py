@@ -350,24 +350,29 @@ class SimNode(LifecycleNode):
             else:
                 set_time(self._clock_msg.clock, now)
                 self._clock_pub.publish(self._clock_msg)
-            schedule.clock = _next_due(schedule.clock, periods["clock"], now)
+            if now + eps >= schedule.clock:  # a forced publication off the grid leaves the grid alone
+                schedule.clock = _next_due(schedule.clock, periods["clock"], now)
         if force or now + eps >= schedule.joint_states:
             self._publish_joint_states(now)
-            schedule.joint_states = _next_due(schedule.joint_states, periods["joint_states"], now)
+            if now + eps >= schedule.joint_states:
+                schedule.joint_states = _next_due(schedule.joint_states, periods["joint_states"], now)
         # The streams below are built and published only while someone subscribes (the checks
         # cost ~1 us); /clock and /joint_states are always published.
         if force or now + eps >= schedule.odom:
             self._publish_odom(now)
-            schedule.odom = _next_due(schedule.odom, periods["odom"], now)
+            if now + eps >= schedule.odom:
+                schedule.odom = _next_due(schedule.odom, periods["odom"], now)
         if len(self._link_tf) and (force or now + eps >= schedule.link_tf):
             if self._tf_pub.get_subscription_count() > 0:
                 self._tf_pub.publish(self._link_tf.update(sim.data, now))
-            schedule.link_tf = _next_due(schedule.link_tf, periods["link_tf"], now)
+            if now + eps >= schedule.link_tf:
+                schedule.link_tf = _next_due(schedule.link_tf, periods["link_tf"], now)
         if force or now + eps >= schedule.state:
             if len(self._object_tf):
                 self._publish_objects(now)
             self.plugins.publish_state(now)
-            schedule.state = _next_due(schedule.state, periods["state"], now)
+            if now + eps >= schedule.state:
+                schedule.state = _next_due(schedule.state, periods["state"], now)
 
     def _publish_joint_states(self, now: float) -> None:
         assert self.sim is not None
