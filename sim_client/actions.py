@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import math
 import threading
+import time
+import uuid
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Generic, TypeVar
 
@@ -24,6 +26,7 @@ from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 from rclpy.action import ActionClient
 from rclpy.action.client import ClientGoalHandle
 from rclpy.parameter import Parameter, parameter_value_to_python
+from unique_identifier_msgs.msg import UUID
 
 from sim_client.session import RESPONSE_QOS, RosSession, WaitTimeout
 from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, Walk
@@ -178,6 +181,39 @@ class GoalHandle(Generic[FeedbackT, ResultT]):
         )
 
 
+PROBE_ATTEMPT_S = 2.0  # [s of wall time] a probe request not answered in this long is sent again
+
+
+def wait_until_answering(session: RosSession, client: ActionClient, timeout: float) -> None:
+    """Wait until an action server answers this client's cancel and result requests (both ways matched).
+
+    ``server_is_ready()`` says this client's *requests* reach the server. Its responses come back
+    on readers the server's side of discovery has to match too, and until it has (seconds on a
+    loaded machine) a response is dropped: the request is never answered. A first cancel sent just
+    after the server became "ready" once waited 30 s for nothing that way. A cancel and a result
+    request for a goal id nobody has are answered at once and change nothing; each is sent (again
+    every :data:`PROBE_ATTEMPT_S`) until it is answered.
+
+    Raises:
+        WaitTimeout: the server did not answer both within ``timeout`` wall seconds.
+    """
+    deadline = time.monotonic() + timeout
+    session.wait_for(client.server_is_ready, timeout, f"action server {client._action_name}")
+    nobody = ClientGoalHandle(client, UUID(uuid=list(uuid.uuid4().bytes)),
+                              client._action_type.Impl.SendGoalService.Response())
+    for probe, what in ((nobody.cancel_goal_async, "a cancel request"), (nobody.get_result_async, "a result request")):
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0.0:
+                raise WaitTimeout(f"action server {client._action_name} did not answer {what} within {timeout:.1f} s")
+            future = session.in_executor(probe, remaining, what)
+            try:
+                session.wait_future(future, min(PROBE_ATTEMPT_S, remaining), f"the answer to {what}")
+                break
+            except WaitTimeout:
+                continue
+
+
 class _ActionClientBase(Generic[GoalT, FeedbackT, ResultT]):
     """One action client on a session. Subclasses set ``action_type`` and ``default_name``."""
 
@@ -190,16 +226,21 @@ class _ActionClientBase(Generic[GoalT, FeedbackT, ResultT]):
         self._client = ActionClient(session.node, self.action_type, self.name, goal_service_qos_profile=RESPONSE_QOS,
                                     result_service_qos_profile=RESPONSE_QOS, cancel_service_qos_profile=RESPONSE_QOS)
         self.error_names = error_code_names(self.action_type.Result)
+        self._answering = False  # the server has answered this client's probes (wait_for_server)
 
     def sim_now(self) -> float:
         """The session's clock [s] (sim time when the session uses sim time)."""
         return self.session.node.get_clock().now().nanoseconds * 1e-9
 
     def wait_for_server(self, timeout: float = 30.0) -> None:
+        """Wait until the server answers this client (once per client; see :func:`wait_until_answering`)."""
+        if self._answering and self._client.server_is_ready():
+            return
         try:
-            self.session.wait_for(self._client.server_is_ready, timeout, f"action server {self.name}")
+            wait_until_answering(self.session, self._client, timeout)
         except WaitTimeout as error:
             raise ActionError(f"{error}; is the node that serves {self.name} running?") from None
+        self._answering = True
 
     def server_ready(self) -> bool:
         return bool(self._client.server_is_ready())

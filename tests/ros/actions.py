@@ -9,6 +9,7 @@ from typing import Any
 from rclpy.action import ActionClient
 
 from sim_client import RosSession
+from sim_client.actions import wait_until_answering
 
 
 @dataclass
@@ -69,6 +70,7 @@ def wait_feedback(session: RosSession, sent: Sent, predicate: Callable[[Any], bo
 
 
 def ready_client(session: RosSession, action_type: Any, name: str, timeout: float = 60.0) -> ActionClient:
+    """A plain rclpy ActionClient whose server has answered it (a cancel and a result request: both ways matched)."""
     client = ActionClient(session.node, action_type, name)
-    session.wait_for(client.server_is_ready, timeout, f"action server {name}")
+    wait_until_answering(session, client, timeout)
     return client
