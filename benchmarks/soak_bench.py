@@ -13,7 +13,7 @@ header stamp from the CDR, as a counting listener should: deserializing a 29-joi
 Python 1000 times a second costs a loaded 2-core machine more than it has. Its reader queue (reliable,
 keep-last) holds :data:`LISTENER_QUEUE_S` seconds of the stream, so a listener whose Python lags loses
 nothing. A message counts as lost when its stamp (every physics step's) never arrives; each hole is
-printed with the listener's longest stall before it: /sim's writer keeps :data:`SIM_JOINT_HISTORY`
+printed with the listener's longest stall before it: /sim's writer keeps ``STREAM_HISTORY_DEPTH``
 states (10 s of sim time at 500 Hz), and a listener process stalled longer than that (its DDS threads
 too) loses what it had not acknowledged. Measured with the listener stopped (SIGSTOP) every 8 s, the sim
 otherwise idle, when the writer kept 1000: 1.5 s stops at 500 Hz lost nothing, 2.5 s stops lost 250
@@ -22,7 +22,7 @@ too (the repairs a reliable writer sends need CPU on both ends). The soak fills 
 listener asks for a higher priority (:data:`LISTENER_NICE`), as a recorder on a core of its own would
 have: otherwise it measures its own starvation (6% of a core in one run), not /sim's delivery.
 
-The clients' service readers keep :data:`CLIENT_QUEUE` responses: a server's responses go to every
+The clients' service readers keep ``sim_client.session.RESPONSE_QOS``'s 1000 responses: a server's responses go to every
 client and each client throws the others' away only as it reads them, so with rclpy's default
 (keep-last 10) a client stalled while the other nine were answered lost its own response.
 
@@ -67,11 +67,9 @@ GOAL_ANSWER_S = 5.0  # [s] deadline of a goal response: answered later is late
 PARAM_ANSWER_S = 5.0  # [s] deadline of a parameter call's response
 RESULT_S = 30.0  # [s] deadline of a goal's result (a 0.3 m step or an arm reach takes a few seconds of sim time)
 LOST_S = 120.0  # [s] a request not answered within this long is lost
-SIM_JOINT_HISTORY = 5000  # /joint_states states /sim's reliable keep-last writer keeps (STREAM_HISTORY_DEPTH, nodes/sim_node.py)
 LISTENER_NICE = -10  # the listener is the instrument: it asks for this priority (needs the right to; else it runs at 0)
 STALL_WINDOW_S = 5.0  # [s] before a hole in /joint_states, where the listener's longest stall is looked for
 CLOSE_S = 20.0  # [s] a client's ROS session gets this long to close after it reported
-CLIENT_QUEUE = 1000  # responses a client's service readers keep (rclpy's default: 10)
 
 
 def process_stats(pid: int) -> tuple[float, float]:
@@ -140,9 +138,9 @@ def client_loop(index: int, stop: threading.Event, counts: Counts, started: floa
     from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
     from rcl_interfaces.srv import GetParameters, SetParameters
     from rclpy.action import ActionClient
-    from rclpy.qos import QoSProfile
 
     from sim_client import RosSession
+    from sim_client.session import RESPONSE_QOS
     from sim_interfaces.action import MoveArm, Walk
     from sim_interfaces.srv import Reset
 
@@ -150,7 +148,7 @@ def client_loop(index: int, stop: threading.Event, counts: Counts, started: floa
     # A server's responses go to every client's response reader, and only there are the others' thrown
     # away: with rclpy's default (keep-last 10) a client whose process is starved for a moment while the
     # other nine are answered finds its own response overwritten. Keep 1000, as rclpy's parameter services do.
-    deep = QoSProfile(depth=CLIENT_QUEUE)
+    deep = RESPONSE_QOS
     with RosSession(f"soak_{index}", use_sim_time=False) as session:
         walk, arm = (ActionClient(session.node, action_type, name, goal_service_qos_profile=deep,
                                   result_service_qos_profile=deep, cancel_service_qos_profile=deep)
@@ -331,7 +329,7 @@ def joint_figures(arrivals: list[float], stamps_ns: list[int], rate_hz: float) -
     wall = float(arrival[-1] - arrival[0])
     # Where the stream has holes: (wall second of the hole, states missing, the listener's longest stall in the
     # STALL_WINDOW_S before it [ms]). A reliable keep-last writer drops what a stalled reader has not
-    # acknowledged once its history is full: /sim's keeps SIM_JOINT_HISTORY states.
+    # acknowledged once its history is full: /sim's keeps STREAM_HISTORY_DEPTH states.
     order = np.argsort(steps, kind="stable")
     jumps = np.diff(steps[order])
     holes = []
@@ -471,6 +469,8 @@ def main() -> int:
               f"wall time at real_time_factor {joints['rtf']:.3f}; listener CPU {100 * joints['cpu_share']:.0f}% "
               f"of a core at niceness {joints.get('niceness', 0)}")
         if joints["hole_count"]:
+            from nodes.sim_node import STREAM_HISTORY_DEPTH as SIM_JOINT_HISTORY
+
             history_s = SIM_JOINT_HISTORY * joints["wall_s"] / max(joints["published"], 1)  # at the rate published
             print(f"  {joints['hole_count']} holes (at wall second, states missing, the listener's longest stall in the "
                   f"{STALL_WINDOW_S:g} s before [ms]): {', '.join(str(tuple(hole)) for hole in joints['holes'])}; /sim's "

@@ -344,34 +344,41 @@ class SimNode(LifecycleNode):
         schedule = self._schedule
         periods = self._periods
         eps = 1e-9
-        if force or now + eps >= schedule.clock:
+        # A stream is published when due or forced; only a due one moves on along its grid (a forced
+        # publication off the grid, e.g. at a reset, leaves the grid alone).
+        due = now + eps >= schedule.clock
+        if force or due:
             if self._clock_template is not None:
                 self._clock_pub.publish(self._clock_template.serialize(now))
             else:
                 set_time(self._clock_msg.clock, now)
                 self._clock_pub.publish(self._clock_msg)
-            if now + eps >= schedule.clock:  # a forced publication off the grid leaves the grid alone
+            if due:
                 schedule.clock = _next_due(schedule.clock, periods["clock"], now)
-        if force or now + eps >= schedule.joint_states:
+        due = now + eps >= schedule.joint_states
+        if force or due:
             self._publish_joint_states(now)
-            if now + eps >= schedule.joint_states:
+            if due:
                 schedule.joint_states = _next_due(schedule.joint_states, periods["joint_states"], now)
         # The streams below are built and published only while someone subscribes (the checks
         # cost ~1 us); /clock and /joint_states are always published.
-        if force or now + eps >= schedule.odom:
+        due = now + eps >= schedule.odom
+        if force or due:
             self._publish_odom(now)
-            if now + eps >= schedule.odom:
+            if due:
                 schedule.odom = _next_due(schedule.odom, periods["odom"], now)
-        if len(self._link_tf) and (force or now + eps >= schedule.link_tf):
+        due = now + eps >= schedule.link_tf
+        if len(self._link_tf) and (force or due):
             if self._tf_pub.get_subscription_count() > 0:
                 self._tf_pub.publish(self._link_tf.update(sim.data, now))
-            if now + eps >= schedule.link_tf:
+            if due:
                 schedule.link_tf = _next_due(schedule.link_tf, periods["link_tf"], now)
-        if force or now + eps >= schedule.state:
+        due = now + eps >= schedule.state
+        if force or due:
             if len(self._object_tf):
                 self._publish_objects(now)
             self.plugins.publish_state(now)
-            if now + eps >= schedule.state:
+            if due:
                 schedule.state = _next_due(schedule.state, periods["state"], now)
 
     def _publish_joint_states(self, now: float) -> None:

@@ -51,6 +51,8 @@ def skill_state_qos() -> QoSProfile:
     """The QoS of /sim/skill_state on both ends: reliable, keep-last 100, liveliness with a 1 s lease."""
     return QoSProfile(depth=100, liveliness=LivelinessPolicy.AUTOMATIC,
                       liveliness_lease_duration=Duration(seconds=SIM_LIVELINESS_LEASE_S))
+
+
 PICK_POSE_RADIUS_M = 0.03  # a pick_pose names the object whose centre is this close
 # The /arm parameters the arm skills read, with their defaults (a START without settings uses these).
 ARM_SETTINGS = {

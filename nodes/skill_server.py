@@ -122,9 +122,9 @@ class SkillActionServer:
 
     def __init__(self, node: Node, binding: SkillBinding, action_name: str, robot: RobotSpec,
                  settings: Callable[[], dict[str, float]], feedback_period: Callable[[], float], commands: Any,
-                 sim_liveliness: SimLiveliness | None = None) -> None:
+                 sim_liveliness: SimLiveliness) -> None:
         self._node = node
-        self._sim_liveliness = sim_liveliness or SimLiveliness()
+        self._sim_liveliness = sim_liveliness
         self.binding = binding
         self._robot = robot
         self._settings = settings
