@@ -24,6 +24,7 @@ MsgT = TypeVar("MsgT")
 # server go to all of its clients, and each throws the others' away only as it reads them: with ten
 # clients answered while this one was busy, a queue of 10 lost its own response (the soak benchmark).
 RESPONSE_QOS = QoSProfile(depth=1000)
+CLOSE_WAIT_S = 10.0  # [s of wall time] close() waits this long for the executor's callbacks and thread to end
 
 T = TypeVar("T")
 
@@ -115,11 +116,18 @@ class RosSession:
         self.close()
 
     def close(self) -> None:
+        """Stop the executor, wait for its thread to end, then destroy the node and the context.
+
+        The node is destroyed only once the spin thread has ended: destroyed under a spin still running
+        (an executor shutdown outlives its timeout on a loaded machine), rclpy finishes destroying a
+        handle the wait set still held on the spin thread, and that once hung the whole process.
+        """
         self._closing = True
-        self._executor.shutdown(timeout_sec=2.0)
+        self._executor.shutdown(timeout_sec=CLOSE_WAIT_S)
+        self._thread.join(timeout=CLOSE_WAIT_S)
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
-        self._thread.join(timeout=5.0)
+        self._thread.join(timeout=CLOSE_WAIT_S)
 
     # ----- waiting -----------------------------------------------------------------------
     @staticmethod
