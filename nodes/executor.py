@@ -22,7 +22,7 @@ import traceback
 from typing import Any, cast
 
 import rclpy.logging
-from rclpy.event_handler import EventHandler, QoSSubscriptionEventType
+from rclpy.event_handler import EventHandler
 from rclpy.executors import (
     ConditionReachedException,
     ExternalShutdownException,
@@ -147,19 +147,15 @@ def drop_qos_event_handlers(node: Node) -> int:
     publishers and subscriptions use matching QoS on both ends, so the warnings are given up; a
     QoS mismatch still shows as no data (``ros2 topic info -v`` lists both ends' QoS). Each entity's
     handler list is emptied too, so destroying the node later does not look for them. Returns how
-    many handlers were dropped. A liveliness handler is kept: it was asked for (it fires only when a
-    writer's liveliness changes, e.g. the skill servers' watch on /sim).
+    many handlers were dropped.
     """
     dropped = 0
     entities: list[Publisher | Subscription] = [*node.publishers, *node.subscriptions]
     for entity in entities:
         handlers = cast("list[EventHandler]", entity.event_handlers)  # a list (rclpy 7.1 annotates one handler)
-        kept = [h for h in handlers if h.event_type == QoSSubscriptionEventType.RCL_SUBSCRIPTION_LIVELINESS_CHANGED]
         for handler in handlers:
-            if handler in kept:
-                continue
             node.remove_waitable(handler)
             handler.destroy()
             dropped += 1
-        entity.event_handlers = cast(EventHandler, kept)
+        entity.event_handlers = cast(EventHandler, [])
     return dropped

@@ -19,15 +19,7 @@ from rclpy.qos import QoSProfile
 from rclpy.serialization import deserialize_message, serialize_message
 
 from nodes.conversions import set_time
-from nodes.skill_protocol import (
-    BINDINGS,
-    SKILL_COMMAND_TOPIC,
-    SKILL_STATE_TOPIC,
-    SkillContext,
-    fill_message,
-    result_message,
-    skill_state_qos,
-)
+from nodes.skill_protocol import BINDINGS, SKILL_COMMAND_TOPIC, SKILL_STATE_TOPIC, SkillContext, fill_message, result_message
 from sim_bridge import Simulation
 from sim_bridge.errors import InvalidGoalError
 from sim_bridge.skills import SkillHost, SkillRun, SkillStatus
@@ -59,7 +51,7 @@ class SkillBridge:
         self._context = context
         self._seen: collections.deque[tuple[str, int]] = collections.deque(maxlen=SEEN_COMMANDS)
         self._refused: list[SkillRun] = []
-        self._pub = node.create_publisher(SkillState, SKILL_STATE_TOPIC, skill_state_qos())
+        self._pub = node.create_publisher(SkillState, SKILL_STATE_TOPIC, QOS)
         node.create_subscription(SkillCommand, SKILL_COMMAND_TOPIC, self._on_command, QOS,
                                  callback_group=ReentrantCallbackGroup())
         node.create_timer(HEARTBEAT_PERIOD_S, self._heartbeat, callback_group=ReentrantCallbackGroup(),

@@ -20,8 +20,6 @@ from typing import Any
 
 import numpy as np
 from geometry_msgs.msg import Pose as PoseMsg, PoseStamped
-from rclpy.duration import Duration
-from rclpy.qos import LivelinessPolicy, QoSProfile
 
 from nodes.conversions import duration_msg, set_pose, set_time, yaw_of
 from robot_models import RobotSpec, WalkingLimits
@@ -40,19 +38,6 @@ from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, ResetPose,
 
 SKILL_COMMAND_TOPIC = "/sim/skill_command"
 SKILL_STATE_TOPIC = "/sim/skill_state"
-# /sim's SkillState writer declares DDS liveliness (AUTOMATIC): the middleware's own thread asserts it
-# every fraction of this lease, without Python or the GIL. A server whose /sim went silent asks it
-# whether /sim is dead (lease lost: killed, stopped) or only starved of CPU (still alive): see
-# nodes.skill_server. A reader asking for no lease (the default) matches it too.
-SIM_LIVELINESS_LEASE_S = 1.0
-
-
-def skill_state_qos() -> QoSProfile:
-    """The QoS of /sim/skill_state on both ends: reliable, keep-last 100, liveliness with a 1 s lease."""
-    return QoSProfile(depth=100, liveliness=LivelinessPolicy.AUTOMATIC,
-                      liveliness_lease_duration=Duration(seconds=SIM_LIVELINESS_LEASE_S))
-
-
 PICK_POSE_RADIUS_M = 0.03  # a pick_pose names the object whose centre is this close
 # The /arm parameters the arm skills read, with their defaults (a START without settings uses these).
 ARM_SETTINGS = {

@@ -31,15 +31,7 @@ from rclpy.task import Future
 
 from nodes.conversions import seconds_of
 from nodes.executor import wait_parked
-from nodes.skill_protocol import (
-    BINDINGS,
-    SIM_LIVELINESS_LEASE_S,
-    SKILL_COMMAND_TOPIC,
-    SKILL_STATE_TOPIC,
-    SkillBinding,
-    result_codes,
-    skill_state_qos,
-)
+from nodes.skill_protocol import BINDINGS, SKILL_COMMAND_TOPIC, SKILL_STATE_TOPIC, SkillBinding, result_codes
 from robot_models import RobotSpec
 from sim_bridge.errors import InvalidGoalError
 from sim_interfaces.msg import SkillCommand, SkillState
@@ -49,11 +41,8 @@ CANCEL_ACK_S = 2.0  # wall seconds a cancel request waits for /sim to report it 
 SIM_MATCH_S = 10.0  # wall seconds a server waits at start-up for /sim's goal topics to match
 RESEND_PERIOD_S = 0.1  # a START not yet reported is sent again (a message sent before discovery is lost)
 # /sim publishes each running goal's state at least every 0.2 s of wall time, paused or not
-# (nodes.skill_bridge.HEARTBEAT_PERIOD_S): this long without a word, it has stopped or died, unless DDS
-# still holds its state writer alive (SIM_LIVELINESS_LEASE_S): then its Python is starved of CPU on a
-# loaded machine, and the goal waits on, up to SIM_STARVED_S of silence.
+# (nodes.skill_bridge.HEARTBEAT_PERIOD_S): this long without a word, it has stopped or died.
 SIM_SILENCE_S = 1.8
-SIM_STARVED_S = 30.0
 # The watchdog runs every RESEND_PERIOD_S; a longer gap means this server itself was starved of CPU
 # (states from /sim may be queued unread): the gap is not counted as /sim's silence.
 STARVED_GAP_S = 0.5
@@ -89,21 +78,6 @@ class _Goal:
     milestone: int = -1
     cancel_seen: threading.Event = field(default_factory=threading.Event)
     cancel_asked: bool = False
-    starved_reported: bool = False
-
-
-class SimLiveliness:
-    """Whether /sim's SkillState writer is alive, as DDS liveliness says (updated by the subscription's event)."""
-
-    def __init__(self) -> None:
-        self.alive_count = 0
-
-    def on_changed(self, info: Any) -> None:
-        self.alive_count = int(info.alive_count)
-
-    @property
-    def alive(self) -> bool:
-        return self.alive_count > 0
 
 
 class SkillActionServer:
@@ -116,15 +90,11 @@ class SkillActionServer:
         robot: the robot of ``/sim``.
         settings: the node's parameters the skill reads, read when a goal starts or they change.
         feedback_period: [s of sim time] between relayed feedback messages.
-        commands: the publisher of SkillCommands to /sim.
-        sim_liveliness: DDS liveliness of /sim's SkillState writer (tells a starved /sim from a dead one).
     """
 
     def __init__(self, node: Node, binding: SkillBinding, action_name: str, robot: RobotSpec,
-                 settings: Callable[[], dict[str, float]], feedback_period: Callable[[], float], commands: Any,
-                 sim_liveliness: SimLiveliness) -> None:
+                 settings: Callable[[], dict[str, float]], feedback_period: Callable[[], float], commands: Any) -> None:
         self._node = node
-        self._sim_liveliness = sim_liveliness
         self.binding = binding
         self._robot = robot
         self._settings = settings
@@ -273,23 +243,12 @@ class SkillActionServer:
         action = self.binding.action_type
         for goal in pending:
             if goal.acked:
-                silence = now - goal.last_heard
-                if SIM_SILENCE_S < silence < SIM_STARVED_S and self._sim_liveliness.alive:
-                    if not goal.starved_reported:  # alive for DDS: /sim's Python is starved, not dead
-                        goal.starved_reported = True
-                        self._node.get_logger().warning(
-                            f"/sim silent for {silence:.1f} s of wall time but alive (DDS liveliness, "
-                            f"{SIM_LIVELINESS_LEASE_S:g} s lease): starved of CPU; goal {goal.seq} waits up to "
-                            f"{SIM_STARVED_S:g} s")
-                    continue
-                if silence > SIM_SILENCE_S:
+                if now - goal.last_heard > SIM_SILENCE_S:
                     result = action.Result()
                     result.error_code = action.Result.SIM_FAULT
-                    dead = ("the sim node has stopped or died (its DDS liveliness is lost)" if not self._sim_liveliness.alive
-                            else "the sim node is alive for DDS but has not run for that long")
                     result.error_msg = (f"/sim stopped answering: no state of this goal on {SKILL_STATE_TOPIC} for "
-                                        f"{silence:.1f} s of wall time (it reports running goals every "
-                                        f"0.2 s, paused or not); {dead}")
+                                        f"{now - goal.last_heard:.1f} s of wall time (it reports running goals every "
+                                        "0.2 s, paused or not); the sim node has stopped or died")
                     self._end(goal, SkillState.ABORTED, result)
             elif now - goal.sent_at > ACK_TIMEOUT_S:
                 result = action.Result()
@@ -355,11 +314,9 @@ def skill_servers(node: Node, robot: RobotSpec, actions: dict[str, str], setting
     Args:
         actions: skill name -> action name (e.g. ``{"walk": "/walk"}``).
     """
-    from rclpy.event_handler import SubscriptionEventCallbacks
     from rclpy.qos import QoSProfile
 
     servers: dict[str, SkillActionServer] = {}
-    liveliness = SimLiveliness()
 
     def on_state(state: SkillState) -> None:
         server = servers.get(state.skill)
@@ -370,10 +327,7 @@ def skill_servers(node: Node, robot: RobotSpec, actions: dict[str, str], setting
     # Subscribed for the node's life (discovery is done before the first goal, which then gets its
     # first feedback at once); /sim publishes states only while a goal runs or changes, so an idle
     # server receives nothing.
-    # Its liveliness event (kept by nodes.executor.drop_qos_event_handlers) tells a dead /sim from a starved one.
-    states = node.create_subscription(SkillState, SKILL_STATE_TOPIC, on_state, skill_state_qos(),
-                                      callback_group=ReentrantCallbackGroup(),
-                                      event_callbacks=SubscriptionEventCallbacks(liveliness=liveliness.on_changed))
+    states = node.create_subscription(SkillState, SKILL_STATE_TOPIC, on_state, qos, callback_group=ReentrantCallbackGroup())
     commands = node.create_publisher(SkillCommand, SKILL_COMMAND_TOPIC, qos)
     # The actions are offered once /sim is matched both ways, so a client that waited for the server
     # finds its first goal taken at once (not after discovery, which takes a while after start-up).
@@ -384,7 +338,6 @@ def skill_servers(node: Node, robot: RobotSpec, actions: dict[str, str], setting
         node.get_logger().warning(f"/sim has not subscribed to {SKILL_COMMAND_TOPIC} within {SIM_MATCH_S:g} s; "
                                   "serving anyway (goals are sent again until /sim answers)")
     for skill, action_name in actions.items():
-        servers[skill] = SkillActionServer(node, BINDINGS[skill], action_name, robot, settings, feedback_period, commands,
-                                           liveliness)
+        servers[skill] = SkillActionServer(node, BINDINGS[skill], action_name, robot, settings, feedback_period, commands)
     _SERVERS.setdefault(node, []).extend(servers.values())
     return servers
