@@ -111,15 +111,16 @@ class HandSensorsNode(Node):
         raw = np.array([_vector(w) for w in msg.wrenches]) if msg.wrenches else np.zeros((0, 6))
         if list(msg.names) != self._names:
             return  # another robot's sensors: not ours
+        # Published under the lock: once a calibration has stored its offset (and answered), no reading
+        # corrected by the old offset is published any more.
         with self._lock:
-            offsets = self._offsets.copy()
             calibration = self._calibration
-        for i, name in enumerate(self._names):
-            publisher, out = self._outputs[name]
-            out.header = msg.header
-            out.header.frame_id = msg.frame_ids[i]
-            _set(out.wrench, raw[i] - offsets[i])
-            publisher.publish(out)
+            for i, name in enumerate(self._names):
+                publisher, out = self._outputs[name]
+                out.header = msg.header
+                out.header.frame_id = msg.frame_ids[i]
+                _set(out.wrench, raw[i] - self._offsets[i])
+                publisher.publish(out)
         if calibration is not None and not calibration.done.done():
             self._sample(calibration, msg, raw)
 
