@@ -43,7 +43,7 @@ def walk(client, g1):
 
 @pytest.fixture()
 def odom(client, g1):
-    recorder = client.record(Odometry, "/odom", keep=100_000)
+    recorder = client.record(Odometry, "/odom", qos=1000, keep=100_000)  # deep: a starved reader loses nothing
     client.wait_for(lambda: recorder.count > 0, 30.0, "/odom")
     return recorder
 

@@ -174,7 +174,7 @@ class Shell:
 
     def check_pace(self, speed: float) -> None:
         """The running walk reaches the new pace within 2 s of sim time (measured on /odom over the 2 s after that)."""
-        odom = self.client.record(Odometry, "/odom", keep=100_000)
+        odom = self.client.record(Odometry, "/odom", qos=1000, keep=100_000)  # deep: a starved reader loses nothing
         self.client.wait_for(lambda: odom.count > 0, 30.0, "/odom")
         t0 = _stamp(odom.latest)
 

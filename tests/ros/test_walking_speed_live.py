@@ -51,7 +51,8 @@ def test_walking_speed_from_0_5_to_0_8_mid_walk(client):
     with running(["bringup", "--robot", "g1", "--rtf", "1"]):
         walk = ready_client(client, Walk, "/walk", timeout=READY_S)
         set_walking_speed(client, 0.5)
-        odom = client.record(Odometry, "/odom", keep=1_000_000)
+        # A deep queue (33 s at 30 Hz): a reader starved for a moment on a loaded machine loses nothing
+        odom = client.record(Odometry, "/odom", qos=1000, keep=1_000_000)
         sent = send(client, walk, Walk.Goal(distance=12.0))  # speed 0: the walking_speed parameter's pace
         assert sent.handle.accepted
         wait_feedback(client, sent, lambda f: f.distance_walked > 1.5, READY_S, "the walk under way at 0.5 m/s")
