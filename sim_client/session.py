@@ -182,19 +182,46 @@ class RosSession:
         recorder._unsubscribe = lambda: self.node.destroy_subscription(subscription)
         return recorder
 
-    def call(self, srv_type: Any, name: str, request: Any, timeout: float = 10.0) -> Any:
+    def call(self, srv_type: Any, name: str, request: Any, timeout: float = 10.0,
+             resend_every_s: float | None = None) -> Any:
         """Call a service and return its response (waits for the service first).
 
         Clients are kept per service: a client created just before its call can lose the
         response (the server's reply side may not have matched it yet), and discovery per call
-        costs time.
+        costs time. For the same reason the first call to a server that has just started can lose
+        its response; a request without side effects (a query) can be sent again every
+        ``resend_every_s`` wall seconds until one is answered.
+
+        Raises:
+            WaitTimeout: the service did not appear, or no response came, within ``timeout`` wall seconds.
         """
         key = (srv_type, name)
         client = self._service_clients.get(key)
         if client is None:
             client = self._service_clients[key] = self.node.create_client(srv_type, name, qos_profile=RESPONSE_QOS)
         self.wait_for(client.service_is_ready, timeout, f"service {name}")
-        return self.wait_future(client.call_async(request), timeout, f"response of {name}")
+        if resend_every_s is None:
+            return self.wait_future(client.call_async(request), timeout, f"response of {name}")
+        deadline = time.monotonic() + timeout
+        answered = threading.Event()
+        sent: list[Future] = []
+        while True:
+            future = client.call_async(request)
+            future.add_done_callback(lambda _future: answered.set())
+            sent.append(future)
+            left = deadline - time.monotonic()
+            answered.wait(min(resend_every_s, max(left, 0.0)))
+            done = next((f for f in sent if f.done()), None)
+            if done is not None:
+                for other in sent:
+                    if other is not done:
+                        client.remove_pending_request(other)
+                return done.result()
+            if time.monotonic() >= deadline:
+                for other in sent:
+                    client.remove_pending_request(other)
+                raise WaitTimeout(f"timed out after {timeout:.1f} s waiting for response of {name} "
+                                  f"(sent {len(sent)} times)")
 
     def parameters(self, node_name: str) -> AsyncParameterClient:
         """Client of a node's standard parameter services (what ``ros2 param`` calls)."""

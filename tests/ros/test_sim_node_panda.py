@@ -37,7 +37,10 @@ def test_lifecycle_transitions_through_the_standard_services(client):
     from rosgraph_msgs.msg import Clock
 
     def state() -> str:
-        return client.call(GetState, "/sim/get_state", GetState.Request(), timeout=STARTUP_S).current_state.label
+        # A query: sent again until answered (the first call to a node just started can lose its response
+        # while the node's side of discovery catches up on a loaded machine).
+        return client.call(GetState, "/sim/get_state", GetState.Request(), timeout=STARTUP_S,
+                           resend_every_s=2.0).current_state.label
 
     def change(transition: int, label: str = "") -> bool:
         request = ChangeState.Request(transition=Transition(id=transition, label=label))
