@@ -203,25 +203,15 @@ class RosSession:
         if resend_every_s is None:
             return self.wait_future(client.call_async(request), timeout, f"response of {name}")
         deadline = time.monotonic() + timeout
-        answered = threading.Event()
-        sent: list[Future] = []
         while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0.0:
+                raise WaitTimeout(f"timed out after {timeout:.1f} s waiting for response of {name}")
             future = client.call_async(request)
-            future.add_done_callback(lambda _future: answered.set())
-            sent.append(future)
-            left = deadline - time.monotonic()
-            answered.wait(min(resend_every_s, max(left, 0.0)))
-            done = next((f for f in sent if f.done()), None)
-            if done is not None:
-                for other in sent:
-                    if other is not done:
-                        client.remove_pending_request(other)
-                return done.result()
-            if time.monotonic() >= deadline:
-                for other in sent:
-                    client.remove_pending_request(other)
-                raise WaitTimeout(f"timed out after {timeout:.1f} s waiting for response of {name} "
-                                  f"(sent {len(sent)} times)")
+            try:
+                return self.wait_future(future, min(resend_every_s, remaining), f"response of {name}")
+            except WaitTimeout:
+                client.remove_pending_request(future)
 
     def parameters(self, node_name: str) -> AsyncParameterClient:
         """Client of a node's standard parameter services (what ``ros2 param`` calls)."""
