@@ -669,10 +669,7 @@ def main(args: list[str] | None = None) -> int:
         sys.stdout.write(help_page(program))
         return 0
     try:
-        # SIGINT/SIGTERM raise KeyboardInterrupt only. With rclpy's handlers one Ctrl-C did two things: it shut
-        # the context down (spin ended with ExternalShutdownException) and, chained, raised KeyboardInterrupt a
-        # moment later, inside the clean-up (seen once in the suite: exit -2 with a traceback).
-        init_ros(argv, own_signals=True)
+        init_ros(argv)
         node = SimNode()
     except StartupError as error:
         rclpy.try_shutdown()
@@ -689,13 +686,11 @@ def main(args: list[str] | None = None) -> int:
             if node.trigger_configure() != TransitionCallbackReturn.SUCCESS:
                 return fail(program, StartupError(f"cannot configure /sim: {node.configure_error or 'unknown cause'}"))
             node.trigger_activate()
-        while rclpy.ok():  # short waits: a signal lands within 0.2 s even when nothing else wakes the executor
-            executor.spin_once(timeout_sec=0.2)
+        executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(sig, signal.SIG_IGN)  # a second signal must not interrupt the clean-up
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not interrupt the clean-up
         node.destroy()
         executor.shutdown()
         if rclpy.ok():
