@@ -8,9 +8,12 @@ parameter, the value and what is allowed, and exit code :data:`EXIT_BAD_START`; 
 
 from __future__ import annotations
 
+import contextlib
+import faulthandler
 import re
+import signal
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 from nodes.parameters import ParameterSpec
@@ -85,8 +88,6 @@ def init_ros(argv: Sequence[str], own_signals: bool = False) -> None:
             thread) instead of rclpy's handlers, which shut the ROS context down at once: a server
             that must still answer its clients on the way out needs the context alive.
     """
-    import signal
-
     import rclpy
     from rclpy._rclpy_pybind11 import RCLError
     from rclpy.signals import SignalHandlerOptions
@@ -100,6 +101,41 @@ def init_ros(argv: Sequence[str], own_signals: bool = False) -> None:
         rclpy.init(args=list(argv), signal_handler_options=options)
     except RCLError as error:
         raise params_file_error(error) from None
+
+class StopRequest:
+    """SIGINT/SIGTERM as a flag the spin loop reads: no exception is raised into running code.
+
+    rclpy's own handlers shut the ROS context down from the signal (a wait set being built then
+    raised: exit 1) and chain to Python's, whose KeyboardInterrupt lands anywhere, once inside the
+    clean-up (exit -2). A KeyboardInterrupt can also land inside rclpy's executor while it holds a
+    lock. Install it once the node is built; the spin loop reads the flag between short waits, and
+    a second signal during the clean-up only sets it again.
+    """
+
+    def __init__(self) -> None:
+        self.requested = False
+
+    @classmethod
+    def install(cls) -> StopRequest:
+        request = cls()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, request._on_signal)
+        return request
+
+    def _on_signal(self, signum: int, frame: Any) -> None:
+        self.requested = True  # a plain store: safe wherever the main thread was interrupted
+
+CLEANUP_LIMIT_S = 20.0  # [s] wall time a node's clean-up after Ctrl-C may take before the process is ended
+
+
+@contextlib.contextmanager
+def bounded_cleanup(limit_s: float = CLEANUP_LIMIT_S) -> Iterator[None]:
+    """A clean-up that hangs prints every thread's stack to stderr and ends the process (exit code 1)."""
+    faulthandler.dump_traceback_later(limit_s, exit=True)
+    try:
+        yield
+    finally:
+        faulthandler.cancel_dump_traceback_later()
 
 
 def fail(program: str, error: StartupError) -> int:

@@ -4,7 +4,6 @@ streams subscribed on demand, and the ``main`` that builds and spins a server.""
 from __future__ import annotations
 
 import contextlib
-import signal
 import sys
 import threading
 import time
@@ -220,7 +219,7 @@ def _serve(node_factory: Callable[[str, list[Parameter]], Node], node_name: str,
     from rclpy.executors import ExternalShutdownException
 
     import robot_models
-    from nodes.cli import StartupError
+    from nodes.cli import StartupError, StopRequest, bounded_cleanup
     from nodes.executor import ServerExecutor, drop_qos_event_handlers
     from nodes.parameters import ParameterSpec, declare, guard_parameter_services
 
@@ -243,18 +242,18 @@ def _serve(node_factory: Callable[[str, list[Parameter]], Node], node_name: str,
     guard_parameter_services(node)
     executor = ServerExecutor(num_threads=4)
     executor.add_node(node)
-    # Spun here in short waits, so SIGINT/SIGTERM (KeyboardInterrupt, see init_ros) lands within 0.2 s
-    # while the ROS context stays up: the running goals can still be ended and their results sent.
+    stop = StopRequest.install()  # from here a signal is a flag, never an exception inside rclpy
+    # Spun in short waits, so SIGINT/SIGTERM is seen within 0.2 s while the ROS context stays up: the
+    # running goals can still be ended and their results sent.
     try:
-        while rclpy.ok():
+        while not stop.requested and rclpy.ok():
             executor.spin_once(timeout_sec=0.2)
-    except (KeyboardInterrupt, ExternalShutdownException):
+    except ExternalShutdownException:
         pass
     finally:
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(sig, signal.SIG_IGN)  # a second signal must not interrupt the clean-up
-        _end_goals_before_exit(node, executor)
-        node.destroy_node()
-        executor.shutdown()
-        rclpy.try_shutdown()
+        with bounded_cleanup():
+            _end_goals_before_exit(node, executor)
+            node.destroy_node()
+            executor.shutdown()
+            rclpy.try_shutdown()
     return 0

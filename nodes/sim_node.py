@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import array
 import math
-import signal
 import sys
 import threading
 import time
@@ -37,7 +36,7 @@ from std_srvs.srv import Trigger
 from tf2_msgs.msg import TFMessage
 
 import robot_models
-from nodes.cli import StartupError, fail, help_requested, help_text, init_ros, program_name
+from nodes.cli import StartupError, StopRequest, bounded_cleanup, fail, help_requested, help_text, init_ros, program_name
 from nodes.conversions import occupancy_grid_msg, set_pose, set_time
 from nodes.executor import ServerExecutor, drop_qos_event_handlers
 from nodes.parameters import ParameterSpec, declare, guard_parameter_services
@@ -669,7 +668,7 @@ def main(args: list[str] | None = None) -> int:
         sys.stdout.write(help_page(program))
         return 0
     try:
-        init_ros(argv)
+        init_ros(argv, own_signals=True)  # SIGINT/SIGTERM raise KeyboardInterrupt until the node is built
         node = SimNode()
     except StartupError as error:
         rclpy.try_shutdown()
@@ -677,25 +676,25 @@ def main(args: list[str] | None = None) -> int:
     except KeyboardInterrupt:  # Ctrl-C while it starts: end as quietly as when running
         rclpy.try_shutdown()
         return 0
+    stop = StopRequest.install()
     guard_parameter_services(node)
     executor = ServerExecutor(num_threads=4)
     executor.add_node(node)
-    code = 0
     try:
         if node.get_parameter("autostart").value:
             if node.trigger_configure() != TransitionCallbackReturn.SUCCESS:
                 return fail(program, StartupError(f"cannot configure /sim: {node.configure_error or 'unknown cause'}"))
             node.trigger_activate()
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
+        while not stop.requested and rclpy.ok():  # short waits: the signal is seen within 0.2 s
+            executor.spin_once(timeout_sec=0.2)
+    except ExternalShutdownException:
         pass
     finally:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not interrupt the clean-up
-        node.destroy()
-        executor.shutdown()
-        if rclpy.ok():
+        with bounded_cleanup():
+            node.destroy()
+            executor.shutdown()
             rclpy.try_shutdown()
-    return code
+    return 0
 
 
 if __name__ == "__main__":

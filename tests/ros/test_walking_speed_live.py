@@ -53,20 +53,23 @@ def test_walking_speed_from_0_5_to_0_8_mid_walk(client):
         set_walking_speed(client, 0.5)
         # A deep queue (33 s at 30 Hz): a reader starved for a moment on a loaded machine loses nothing
         odom = client.record(Odometry, "/odom", qos=1000, keep=1_000_000)
-        sent = send(client, walk, Walk.Goal(distance=12.0))  # speed 0: the walking_speed parameter's pace
+        sent = send(client, walk, Walk.Goal(distance=14.0))  # speed 0: the walking_speed parameter's pace
         assert sent.handle.accepted
         wait_feedback(client, sent, lambda f: f.distance_walked > 1.5, READY_S, "the walk under way at 0.5 m/s")
         changed = stamp(odom.latest)
         set_walking_speed(client, 0.8)
-        client.wait_for(lambda: stamp(odom.latest) >= changed + 8.0 or sent.result_future().done(), READY_S,
-                        "8 s of sim time after the change")
+        client.wait_for(lambda: stamp(odom.latest) >= changed + 10.0 or sent.result_future().done(), READY_S,
+                        "10 s of sim time after the change")
         before = pace(odom, changed - 2.0, changed)
         after = pace(odom, changed + 2.0, changed + 4.0)
-        steady = pace(odom, changed + 4.0, changed + 8.0)  # whole steps dominate a 4 s window, whatever the phase
-        print(f"pace before {before:.3f}, 2-4 s after {after:.3f}, 4-8 s after {steady:.3f} m/s")
+        # The gait overshoots the new pace by up to 3 % for the first ~6 s after the change reaches /sim (core
+        # runs: 0.826 over 2-6 s); the change reaches /sim up to ~2 s of sim time after ``changed`` on a loaded
+        # machine (the client's /odom lags, then a service round trip). Whole steps dominate a 4 s window.
+        steady = pace(odom, changed + 6.0, changed + 10.0)
+        print(f"pace before {before:.3f}, 2-4 s after {after:.3f}, 6-10 s after {steady:.3f} m/s")
         assert before == pytest.approx(0.5, rel=0.05)
         assert after == pytest.approx(0.8, rel=0.10), "the new pace within 2 s of sim time"
         assert steady == pytest.approx(0.8, rel=0.03), "and held"
         outcome = result(client, sent, timeout=300.0)
         assert outcome.status == GoalStatus.STATUS_SUCCEEDED, outcome.result.error_msg
-        assert outcome.result.final_distance == pytest.approx(12.0, abs=0.05)
+        assert outcome.result.final_distance == pytest.approx(14.0, abs=0.05)
