@@ -102,6 +102,7 @@ def init_ros(argv: Sequence[str], own_signals: bool = False) -> None:
     except RCLError as error:
         raise params_file_error(error) from None
 
+
 class StopRequest:
     """SIGINT/SIGTERM as a flag the spin loop reads: no exception is raised into running code.
 
@@ -124,6 +125,7 @@ class StopRequest:
 
     def _on_signal(self, signum: int, frame: Any) -> None:
         self.requested = True  # a plain store: safe wherever the main thread was interrupted
+
 
 CLEANUP_LIMIT_S = 20.0  # [s] wall time a node's clean-up after Ctrl-C may take before the process is ended
 
