@@ -31,6 +31,7 @@ from sim_bridge.state import Pose
 from sim_interfaces.srv import ComputeIK
 
 NODE_NAME = "arm"
+ACTIONS = {"move_arm": "/move_arm", "pick_place": "/pick_place"}  # skill -> the action that serves it
 FRESH_TIMEOUT_S = 2.0  # wall seconds to wait for a first message of a stream subscribed on demand
 
 
@@ -67,7 +68,7 @@ class ArmServer(Node):
         declare(self, (ParameterSpec("robot", robot, "robot whose arms are served", read_only=True), *parameters(self.robot)))
         self.kinematics = ArmKinematics(self.robot)
         self.arms = tuple(self.kinematics.arms)
-        self._servers = skill_servers(self, self.robot, {"move_arm": "/move_arm", "pick_place": "/pick_place"},
+        self._servers = skill_servers(self, self.robot, ACTIONS,
                                       self._settings, lambda: 1.0 / float(self.get_parameter("feedback_rate").value))
         group = ReentrantCallbackGroup()
         # The IK query starts from the current state: streams of /sim subscribed only while a query needs them.

@@ -8,6 +8,8 @@ A node that dies (a non-zero exit) is reported (which, its exit code, its last l
 a launch file's ``respawn`` does, after ``--respawn-delay`` seconds and at most ``--respawn-limit``
 times per node; the others keep running (the servers serve a restarted /sim, which starts from its
 keyframe). With ``--no-respawn`` a dying node stops the others and bringup exits with an error.
+A client waiting on a goal of a server that died gets its result from bringup all the same
+(:mod:`nodes.result_keeper`): ABORTED, ``SIM_FAULT``, naming the dead server.
 """
 
 from __future__ import annotations
@@ -16,9 +18,11 @@ import argparse
 import signal
 import sys
 import threading
+from typing import Any
 
 import robot_models
 from nodes.processes import ChildProcess
+from nodes.result_keeper import ResultKeeper
 
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
@@ -60,6 +64,16 @@ def commands_for(options: argparse.Namespace, ros_args: list[str]) -> list[list[
     return [command + extra for command in [sim, *servers]]
 
 
+def served_actions(commands: list[list[str]]) -> dict[str, list[tuple[str, Any]]]:
+    """The actions each of these executables serves: executable -> [(action name, action type)]."""
+    from nodes import arm_server, locomotion_server
+    from nodes.skill_protocol import BINDINGS
+
+    by_executable = {"arm_server": arm_server.ACTIONS, "locomotion_server": locomotion_server.ACTIONS}
+    return {command[0]: [(name, BINDINGS[skill].action_type) for skill, name in by_executable[command[0]].items()]
+            for command in commands if command[0] in by_executable}
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     split = argv.index("--ros-args") if "--ros-args" in argv else len(argv)
@@ -74,8 +88,9 @@ def main(argv: list[str] | None = None) -> int:
         signal.signal(sig, lambda *_: stop.set())
     children: list[ChildProcess] = []
     restarts: dict[int, int] = {}
+    commands = commands_for(options, argv[split:])
+    keeper = ResultKeeper(served_actions(commands))  # first: discovered by the time any client sends a goal
     try:
-        commands = commands_for(options, argv[split:])
         for command in commands:
             children.append(ChildProcess(command, own_group=False, relay_output=True))
         print(f"bringup: running {', '.join(c.args[0] for c in children)} for {options.robot}; Ctrl-C stops them",
@@ -91,6 +106,14 @@ def main(argv: list[str] | None = None) -> int:
                 last = "\n".join(f"    {line}" for line in list(child.last_lines)[-10:])
                 print(f"bringup: {child.args[0]} died with exit code {code}; its last output:\n{last}",
                       file=sys.stderr, flush=True)
+                try:
+                    answered = keeper.server_died(child.args[0], code)
+                except Exception as error:  # noqa: BLE001  a keeper that cannot answer must not end bringup
+                    print(f"bringup: could not answer the clients of {child.args[0]}'s goals: {error}", file=sys.stderr)
+                    answered = 0
+                if answered:
+                    print(f"bringup: answered {answered} request(s) of clients waiting on {child.args[0]}'s goals "
+                          "(ABORTED, SIM_FAULT)", file=sys.stderr, flush=True)
                 if not options.respawn or restarts.get(index, 0) >= options.respawn_limit:
                     why = "respawn is off" if not options.respawn else f"it was restarted {options.respawn_limit} times"
                     print(f"bringup: {why}; stopping the others", file=sys.stderr, flush=True)
@@ -108,6 +131,8 @@ def main(argv: list[str] | None = None) -> int:
             child.send_signal(signal.SIGINT)
         for child in reversed(children):
             child.stop(interrupt=False)
+        keeper.close()
+
 
 if __name__ == "__main__":
     sys.exit(main())

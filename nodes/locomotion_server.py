@@ -22,6 +22,7 @@ from nodes.reset_pose_service import ResetPoseService
 from nodes.skill_server import skill_servers
 
 NODE_NAME = "locomotion"
+ACTIONS = {"walk": "/walk", "navigate_to_pose": "/navigate_to_pose"}  # skill -> the action that serves it
 SETTINGS = ("walking_speed", "max_yaw_rate", "obstacle_detection_threshold", "robot_radius", "xy_goal_tolerance",
             "yaw_goal_tolerance", "replan_distance")
 
@@ -54,7 +55,7 @@ class LocomotionServer(Node):
             walkers = [name for name in robot_models.ROBOT_NAMES if robot_models.load(name).walking is not None]
             raise StartupError(f"robot {robot!r} cannot walk; walking robots: {', '.join(walkers)}")
         declare(self, (ParameterSpec("robot", robot, "robot whose legs are served", read_only=True), *parameters(spec)))
-        self._servers = skill_servers(self, spec, {"walk": "/walk", "navigate_to_pose": "/navigate_to_pose"},
+        self._servers = skill_servers(self, spec, ACTIONS,
                                       self._settings, lambda: 1.0 / self._param("feedback_rate"))
         self.add_post_set_parameters_callback(self._on_parameters)
         self._reset_pose = ResetPoseService(self)  # /reset_pose: the ResetPose skill, answered when the pose is reached

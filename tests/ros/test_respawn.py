@@ -1,4 +1,5 @@
-"""bringup restarts a node that dies, as a launch file's respawn does; the servers serve the restarted sim."""
+"""bringup restarts a node that dies, as a launch file's respawn does; the servers serve the restarted sim, and the
+clients of a server that died get their results from bringup."""
 
 from __future__ import annotations
 
@@ -7,10 +8,13 @@ import signal
 
 import pytest
 from action_msgs.msg import GoalStatus
+from action_msgs.srv import CancelGoal
 
 from nodes.processes import ChildProcess, child_processes
-from sim_interfaces.action import Walk
+from sim_client.session import WaitTimeout
+from sim_interfaces.action import MoveArm, Walk
 from tests.ros.actions import ready_client, result, send, wait_feedback
+from tests.ros.test_arm_server import move_goal
 
 pytestmark = pytest.mark.slow
 
@@ -47,6 +51,53 @@ def test_a_killed_sim_is_reported_restarted_from_its_keyframe_and_served_again(c
         final = result(client, again, timeout=120.0)
         assert final.status == GoalStatus.STATUS_SUCCEEDED, final.result.error_msg
         assert final.result.final_distance == pytest.approx(-0.5, abs=0.05)
+        assert bringup.alive()
+    finally:
+        assert bringup.stop(timeout=30.0) == 0
+
+
+KILLED_SERVERS = {  # robot, the server's executable, its action, a goal that runs for seconds, a short one
+    "locomotion_server": ("g1", Walk, "/walk", Walk.Goal(distance=3.0, speed=0.3), Walk.Goal(distance=0.3, speed=0.3)),
+    "arm_server": ("panda", MoveArm, "/move_arm", move_goal(0.5, 0.3, 0.3, scaling=0.05), move_goal(0.5, -0.3, 0.3)),
+}
+
+
+@pytest.mark.parametrize("executable", sorted(KILLED_SERVERS))
+def test_a_client_of_a_killed_server_gets_a_result_and_the_restarted_server_serves(client, tmp_path, executable):
+    robot, action_type, name, long_goal, short_goal = KILLED_SERVERS[executable]
+    bringup = ChildProcess(["bringup", "--robot", robot, "--respawn-delay", "0.2"], tmp_path)
+    try:
+        action = ready_client(client, action_type, name, timeout=READY_S)
+        sent = send(client, action, long_goal)
+        assert sent.handle.accepted
+        wait_feedback(client, sent, lambda f: True, READY_S, f"{name} feedback")
+        first = child_pid(bringup.process.pid, executable)
+        assert first is not None
+        os.kill(first, signal.SIGKILL)
+        # The ROS action protocol answers a result only from the goal's server; bringup answers for a dead one.
+        outcome = result(client, sent, timeout=30.0)
+        assert outcome.status == GoalStatus.STATUS_ABORTED
+        assert outcome.result.error_code == action_type.Result.SIM_FAULT
+        assert f"({executable}) died with exit code -9" in outcome.result.error_msg
+        assert sent.cancel().return_code == CancelGoal.Response.ERROR_GOAL_TERMINATED  # a cancel is answered too
+
+        client.wait_for(lambda: child_pid(bringup.process.pid, executable) not in (None, first), READY_S,
+                        f"bringup to restart {executable}")
+        log = bringup.output()
+        assert f"{executable} died with exit code -9" in log and f"waiting on {executable}'s goals" in log
+
+        def next_goal_succeeds() -> bool:  # the restarted server may not be discovered yet: send again until taken
+            try:
+                again = send(client, action, short_goal, timeout=10.0)
+            except WaitTimeout:
+                return False
+            if not again.handle.accepted:
+                return False
+            final = result(client, again, timeout=120.0)
+            assert final.status == GoalStatus.STATUS_SUCCEEDED, final.result.error_msg
+            return True
+
+        client.wait_for(next_goal_succeeds, READY_S, f"a goal to the restarted {executable} to succeed", poll=1.0)
         assert bringup.alive()
     finally:
         assert bringup.stop(timeout=30.0) == 0
