@@ -65,7 +65,8 @@ KILLED_SERVERS = {  # robot, the server's executable, its action, a goal that ru
 @pytest.mark.parametrize("executable", sorted(KILLED_SERVERS))
 def test_a_client_of_a_killed_server_gets_a_result_and_the_restarted_server_serves(client, tmp_path, executable):
     robot, action_type, name, long_goal, short_goal = KILLED_SERVERS[executable]
-    bringup = ChildProcess(["bringup", "--robot", robot, "--respawn-delay", "0.2"], tmp_path)
+    # The restart waits 2 s: the cancel below must reach the keeper before a restarted server could answer it.
+    bringup = ChildProcess(["bringup", "--robot", robot, "--respawn-delay", "2.0"], tmp_path)
     try:
         action = ready_client(client, action_type, name, timeout=READY_S)
         sent = send(client, action, long_goal)
