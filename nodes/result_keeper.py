@@ -17,6 +17,7 @@ same way at once. The robot itself stops when its server goes silent (the skill 
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -26,11 +27,13 @@ from action_msgs.msg import GoalStatus, GoalStatusArray
 from action_msgs.srv import CancelGoal
 from rclpy.node import Node
 from rclpy.qos import qos_profile_action_status_default
+from rclpy.serialization import deserialize_message
 from rclpy.service import Service
 
 from sim_client.session import RosSession, quiet_events
 
 UNSEEN_KEEP_S = 60.0  # [s of wall time] a result request for a goal no status has listed is kept this long
+STATUS_READ_S = 1.0  # [s of wall time] the status topic is read at most this often (and when a server dies)
 CANCEL_KEEP_S = 10.0  # [s of wall time] a cancel request is kept this long (the live server answers in ms)
 TERMINAL = (GoalStatus.STATUS_SUCCEEDED, GoalStatus.STATUS_CANCELED, GoalStatus.STATUS_ABORTED)
 NO_GOAL = bytes(16)  # a cancel request's goal id that means "every goal" (with a stamp) or none
@@ -56,6 +59,8 @@ class _ActionWatch:
     results: list[_Kept] = field(default_factory=list)
     cancels: list[_Kept] = field(default_factory=list)
     status: dict[bytes, int] = field(default_factory=dict)  # the latest status of each goal listed
+    status_raw: bytes | None = None  # the latest status message, serialized, not yet read into ``status``
+    status_read_s: float = -math.inf  # [s, monotonic] when ``status`` was last read from it
     orphans: dict[bytes, str] = field(default_factory=dict)  # goals whose server died -> why
 
 
@@ -63,7 +68,8 @@ class ResultKeeper:
     """Answers the result and cancel requests of goals whose action server died.
 
     Everything runs on its session's executor thread (the services' callbacks, the status topic and
-    :meth:`server_died`), so nothing here needs a lock.
+    :meth:`server_died`), so nothing here needs a lock. A request is kept up to :data:`STATUS_READ_S`
+    longer than its goal runs.
 
     Args:
         actions: executable -> ``[(action name, action type), ...]`` it serves.
@@ -93,6 +99,7 @@ class ResultKeeper:
         for watch in self._watches[executable]:
             why = (f"the action server of {watch.name} ({executable}) died with exit code {code} before the goal "
                    "ended; bringup restarts it: send the goal again")
+            self._read_status(watch)  # the server's last word, however recent
             self._prune(watch)
             for goal, status in watch.status.items():
                 if status not in TERMINAL:
@@ -101,7 +108,7 @@ class ResultKeeper:
                 watch.orphans.setdefault(kept.goal, why)
             results, watch.results = watch.results, []
             cancels, watch.cancels = watch.cancels, []
-            watch.status.clear()
+            watch.status, watch.status_raw = {}, None
             for kept in results:
                 self._send_now[id(kept.service)](self._aborted(watch, watch.orphans[kept.goal]), kept.header)
             for kept in cancels:  # the dead server may have answered some already: a second answer is ignored
@@ -118,9 +125,11 @@ class ResultKeeper:
                                       lambda request, response: self._on_cancel(watch, request, response))
         for service in (results, cancels):
             self._route_responses(service)
+        # Kept serialized: a status array lists every goal of the last 15 min (rclpy's result timeout) and
+        # comes at every change of any goal; read at most every STATUS_READ_S, it costs next to nothing.
         node.create_subscription(GoalStatusArray, f"{name}/_action/status",
-                                 lambda msg: self._on_status(watch, msg), qos_profile_action_status_default,
-                                 event_callbacks=quiet_events())
+                                 lambda data: setattr(watch, "status_raw", data), qos_profile_action_status_default,
+                                 event_callbacks=quiet_events(), raw=True)
         return watch
 
     def _route_responses(self, service: Service) -> None:
@@ -156,14 +165,21 @@ class ResultKeeper:
         self._verdicts[id(response)] = (watch, goal, request)
         return response
 
-    def _on_status(self, watch: _ActionWatch, msg: GoalStatusArray) -> None:
-        watch.status = {bytes(status.goal_info.goal_id.uuid): int(status.status) for status in msg.status_list}
-        self._prune(watch)
-
     # ----- answers ---------------------------------------------------------------------------
     @staticmethod
-    def _prune(watch: _ActionWatch) -> None:
+    def _read_status(watch: _ActionWatch, at_most_every_s: float = 0.0) -> None:
+        """``status`` from the latest status message, unless it was read less than ``at_most_every_s`` ago."""
+        now = time.monotonic()
+        if watch.status_raw is None or now - watch.status_read_s < at_most_every_s:
+            return
+        msg = deserialize_message(watch.status_raw, GoalStatusArray)
+        watch.status = {bytes(status.goal_info.goal_id.uuid): int(status.status) for status in msg.status_list}
+        watch.status_raw, watch.status_read_s = None, now
+
+    @classmethod
+    def _prune(cls, watch: _ActionWatch) -> None:
         """Forget what the live server has answered (the goal ended) or never will need (never listed)."""
+        cls._read_status(watch, STATUS_READ_S)
         now = time.monotonic()
 
         def still_open(kept: _Kept) -> bool:
