@@ -143,9 +143,9 @@ def ros_costs(rounds: int, seconds: float) -> None:
     from sensor_msgs.msg import Image
     from std_msgs.msg import Float64
 
-    from nodes.processes import running
-    from sim_client.session import RosSession
     from sim_interfaces.msg import CameraSettings
+    from sim_ros.processes import running
+    from sim_ros.session import RosSession
 
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)

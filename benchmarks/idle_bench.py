@@ -33,9 +33,9 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 from std_srvs.srv import Trigger
 
 import robot_models
-from nodes.bringup import commands_for, parse_args
-from nodes.processes import ChildProcess
-from sim_client.session import RosSession
+from nodes.launch.bringup import commands_for, parse_args
+from sim_ros.processes import ChildProcess
+from sim_ros.session import RosSession
 
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
 

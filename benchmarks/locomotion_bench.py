@@ -104,7 +104,7 @@ class Rig:
 def new_rig(robot: robot_models.RobotSpec, seed: int | None = None, params: GaitParameters | None = None) -> Rig:
     """A fresh simulation; with a seed, the initial base velocity and joint angles are perturbed a little."""
     sim = Simulation(robot)
-    walker = WalkingController(sim.model, params)
+    walker = WalkingController(sim.model, sim.robot.biped, params=params)
     timed = _Timed(walker)
     sim.set_controller(Slot.LOCOMOTION, timed)
     if seed is not None:

@@ -75,7 +75,7 @@ def main() -> None:
     options = parser.parse_args()
     robot = robot_models.load("g1", "course")
     sim = Simulation(robot)
-    walker = WalkingController(sim.model)
+    walker = WalkingController(sim.model, sim.robot.biped)
     sim.set_controller(Slot.LOCOMOTION, walker)
     grid = grid_from_obstacles(robot.obstacles).inflated(INFLATION_M)
     rng = np.random.default_rng(options.seed)

@@ -25,11 +25,11 @@ os.environ.setdefault("ROS_DOMAIN_ID", str(1 + random.randrange(101)))  # 1..101
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
 # Imported once the ROS environment above is fixed.
-from nodes.processes import running
 from sim_client.actions import MoveArmClient, NavigateClient, PickPlaceClient, WalkClient
-from sim_client.session import RosSession
 from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, Walk
 from sim_interfaces.srv import Reset
+from sim_ros.processes import running
+from sim_ros.session import RosSession
 
 
 def _move_goal(round_: int) -> MoveArm.Goal:

@@ -29,8 +29,9 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 
 # Imported once the ROS environment and the path above are fixed.
 import robot_models
-from sim_client.scenario import schema
-from sim_client.scenario.runner import RunOptions, run
+from sim_client.scenario.model import schema
+from sim_client.scenario.running.options import RunOptions
+from sim_client.scenario.running.runner import run
 
 from walk_bench import core_walk
 

@@ -55,14 +55,14 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 import robot_models
-from nodes.processes import BIN, running
 from sim_bridge import Simulation, Slot
 from sim_bridge.battery import Battery, BatteryConfig, BatteryMeter, Metered
 from sim_bridge.locomotion import WalkingController
 from sim_bridge.skills import SkillHost, SkillStatus, WalkGoal, WalkSkill
-from sim_client.session import RosSession, TopicRecorder
 from sim_interfaces.msg import HandSensors
 from sim_interfaces.srv import Step
+from sim_ros.processes import BIN, running
+from sim_ros.session import RosSession, TopicRecorder
 
 ROBOT = "g1"
 SENSOR_TOPICS = ((Imu, "/imu"), (WrenchStamped, "/left_foot/wrench"), (WrenchStamped, "/right_foot/wrench"),
@@ -146,7 +146,7 @@ def meter_rates(spec: robot_models.RobotSpec, rounds: int) -> dict[str, list[flo
     for _ in range(rounds):
         for mode in ("without", "with"):
             sim = Simulation(spec)
-            legs = SkillHost(WalkingController(sim.model))
+            legs = SkillHost(WalkingController(sim.model, sim.robot.biped))
             sim.set_controller(Slot.LOCOMOTION, Metered(legs, BatteryMeter(Battery())) if mode == "with" else legs)
             sim.step_physics(500)
             start = time.perf_counter()
@@ -158,7 +158,7 @@ def meter_rates(spec: robot_models.RobotSpec, rounds: int) -> dict[str, list[flo
 def walk_drain(spec: robot_models.RobotSpec, distance: float) -> str:
     assert spec.walking is not None and spec.sensors.battery is not None
     sim = Simulation(spec)
-    walker = WalkingController(sim.model)
+    walker = WalkingController(sim.model, sim.robot.biped)
     legs = SkillHost(walker)
     battery = Battery(BatteryConfig.of(spec.sensors.battery))
     sim.set_controller(Slot.LOCOMOTION, Metered(legs, BatteryMeter(battery)))

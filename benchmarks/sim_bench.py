@@ -37,10 +37,10 @@ from std_srvs.srv import Trigger
 from tf2_msgs.msg import TFMessage
 
 import robot_models
-from nodes.processes import running
 from sim_bridge import Simulation
-from sim_client.session import RosSession
 from sim_interfaces.msg import ObjectStates
+from sim_ros.processes import running
+from sim_ros.session import RosSession
 
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
 
@@ -124,7 +124,7 @@ def ros_floor_child(robot: str, period_s: float, seconds: float) -> None:
     import rclpy
     from rclpy.qos import QoSProfile
 
-    from nodes.serialized import JointStateTemplate
+    from nodes.sim.serialized import JointStateTemplate
 
     sim = Simulation(_spec(robot))  # the model and joint indexing; stepped with bare mj_step below
     model, data = sim.model, sim.data

@@ -22,7 +22,7 @@ too (the repairs a reliable writer sends need CPU on both ends). The soak fills 
 listener asks for a higher priority (:data:`LISTENER_NICE`), as a recorder on a core of its own would
 have: otherwise it measures its own starvation (6% of a core in one run), not /sim's delivery.
 
-The clients' service readers keep ``sim_client.session.RESPONSE_QOS``'s 1000 responses: a server's responses go to every
+The clients' service readers keep ``sim_ros.session.RESPONSE_QOS``'s 1000 responses: a server's responses go to every
 client and each client throws the others' away only as it reads them, so with rclpy's default
 (keep-last 10) a client stalled while the other nine were answered lost its own response.
 
@@ -140,9 +140,9 @@ def client_loop(index: int, stop: threading.Event, counts: Counts, started: floa
     from rclpy.action import ActionClient
 
     from sim_client import RosSession
-    from sim_client.session import RESPONSE_QOS
     from sim_interfaces.action import MoveArm, Walk
     from sim_interfaces.srv import Reset
+    from sim_ros.session import RESPONSE_QOS
 
     rng = random.Random(index)
     # A server's responses go to every client's response reader, and only there are the others' thrown
@@ -265,7 +265,7 @@ def run_listener(wall_rate_hz: float) -> None:
     from sensor_msgs.msg import JointState
 
     from sim_client import RosSession
-    from sim_client.session import quiet_events
+    from sim_ros.session import quiet_events
 
     # The soak fills both cores of a 2-core machine; a listener at the same priority as /sim and the ten
     # clients gets a few % of a core and measures its own starvation, not /sim's delivery. As a recorder
@@ -385,7 +385,7 @@ def main() -> int:
         return 0
     os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 100))
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    from nodes.processes import ChildProcess, child_processes
+    from sim_ros.processes import ChildProcess, child_processes
 
     bringup = ChildProcess(["bringup", "--robot", "g1", "--rtf", f"{options.rtf:g}", "--no-respawn", "--ros-args", "-p",
                             f"joint_state_rate:={JOINT_RATE_HZ}"])
@@ -469,7 +469,7 @@ def main() -> int:
               f"wall time at real_time_factor {joints['rtf']:.3f}; listener CPU {100 * joints['cpu_share']:.0f}% "
               f"of a core at niceness {joints.get('niceness', 0)}")
         if joints["hole_count"]:
-            from nodes.sim_node import STREAM_HISTORY_DEPTH as SIM_JOINT_HISTORY
+            from sim_ros.names import STREAM_HISTORY_DEPTH as SIM_JOINT_HISTORY
 
             history_s = SIM_JOINT_HISTORY * joints["wall_s"] / max(joints["published"], 1)  # at the rate published
             print(f"  {joints['hole_count']} holes (at wall second, states missing, the listener's longest stall in the "

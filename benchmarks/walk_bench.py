@@ -95,7 +95,7 @@ class CoreWalk:
 
 def _start_walk(robot: robot_models.RobotSpec, speed: float, record: bool) -> tuple[Simulation, _TimedController]:
     sim = Simulation(robot)
-    controller = WalkingController(sim.model)
+    controller = WalkingController(sim.model, sim.robot.biped)
     timed = _TimedController(controller, record_states=record)
     sim.set_controller(Slot.LOCOMOTION, timed)
     controller.set_velocity_command(speed, 0.0, 0.0)
@@ -143,7 +143,7 @@ def walk(
     """
     rng = np.random.default_rng(seed)
     sim = Simulation(robot)
-    controller = WalkingController(sim.model)
+    controller = WalkingController(sim.model, sim.robot.biped)
     timed = _TimedController(controller)
     sim.set_controller(Slot.LOCOMOTION, timed)
     pelvis = sim.data.body(names.ROOT_BODY)

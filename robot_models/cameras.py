@@ -9,10 +9,11 @@ carries it, and inside it the MuJoCo camera, which looks along its own -z with +
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import mujoco
+
+from robot_models.validation import check_range, is_number
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
@@ -57,12 +58,11 @@ class CameraLayout:
     default_tilt_rad: float = 0.0
 
     def __post_init__(self) -> None:
-        if not 0.0 < self.fovy_deg < 180.0:
-            raise ValueError(f"camera {self.name!r}: fovy must be in (0, 180) deg, got {self.fovy_deg}")
+        check_range(f"camera {self.name!r}: fovy", self.fovy_deg, 0, 180, low_open=True, high_open=True, unit="deg")
         low, high = self.tilt_range_rad
-        if not (math.isfinite(low) and math.isfinite(high) and low <= self.default_tilt_rad <= high):
-            raise ValueError(f"camera {self.name!r}: the tilt range must be finite and hold the default, got "
-                             f"[{low}, {high}] rad, default {self.default_tilt_rad}")
+        if not (is_number(low) and is_number(high)):
+            raise ValueError(f"camera {self.name!r}: the tilt range must be finite, got [{low}, {high}] rad")
+        check_range(f"camera {self.name!r}: the default tilt", self.default_tilt_rad, low, high, unit="rad")
         if self.tilt_joint is None and (low, high) != (0.0, 0.0):
             raise ValueError(f"camera {self.name!r} has no tilt joint but a tilt range [{low}, {high}] rad")
 

@@ -18,26 +18,18 @@ Changes against the URDF as shipped:
 
 from __future__ import annotations
 
-import math
-
 import mujoco
 import numpy as np
 
-from robot_models import g1_constants as names
+import robot_models.g1_constants as names
 from robot_models.cameras import OPTICAL_IN_BODY_QUAT, CameraLayout, add_optical_camera, prepare_scene_for_cameras
+from robot_models.g1_gait import BIPED, WALKING
+from robot_models.physics import set_physics_options
 from robot_models.sensors import BatteryLayout, FootLayout, ImuLayout, SensorLayout, WristLayout, add_sensors
-from robot_models.spec import (
-    ArmScene,
-    Obstacle,
-    RobotSpec,
-    UnknownSceneError,
-    WalkingLimits,
-    add_position_actuator,
-    joint_limits_of,
-    read_urdf,
-)
+from robot_models.spec import ArmScene, Obstacle, RobotSpec, UnknownSceneError, add_position_actuator, joint_limits_of, read_urdf
 
 PHYSICS_TIMESTEP_S = 0.002
+IMPRATIO = 10.0  # frictional / normal contact impedance: soles that stick
 CONTROL_DECIMATION = 2  # 250 Hz control
 
 # Standing crouch [rad]: hip pitch, knee, ankle pitch per leg.
@@ -51,13 +43,6 @@ UPPER_BODY_KP = 150.0
 UPPER_BODY_KV = 3.0
 KD_OVER_KP = 0.03
 
-WALKING = WalkingLimits(
-    speed_range_mps=(0.05, 0.8),  # the gait's max_forward_speed tops out at 0.8 m/s (measured: 100 m, 5 seeds)
-    default_speed_mps=0.3,
-    max_walk_distance_m=100.0,
-    fall_height_m=0.45,  # the pelvis stands at 0.76 m in the stand keyframe
-    fall_tilt_rad=math.radians(50.0),
-)
 
 
 SENSORS = SensorLayout(
@@ -72,7 +57,7 @@ SENSORS = SensorLayout(
 
 
 # The head camera's tilt mount: a small servo (a 50 g camera balanced on its axis, a geared motor's
-# reflected inertia, critically damped: settles in ~0.15 s, 2 N m at most).
+# reflected inertia, critically damped, 2 N m at most).
 HEAD_CAMERA_MASS_KG = 0.05
 HEAD_CAMERA_TILT_KP = 10.0  # [N m/rad]
 HEAD_CAMERA_TILT_KV = 0.4  # [N m s/rad]
@@ -201,10 +186,7 @@ def build_spec() -> mujoco.MjSpec:
     """The G1 scene as an editable spec (not compiled)."""
     spec = mujoco.MjSpec.from_string(_restore_floating_base(read_urdf(names.URDF_RELATIVE_PATH, keep_visuals=True)))
     spec.modelname = names.ROBOT_NAME
-    spec.option.timestep = PHYSICS_TIMESTEP_S
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
-    spec.option.impratio = 10.0
+    set_physics_options(spec, timestep_s=PHYSICS_TIMESTEP_S, impratio=IMPRATIO)
 
     # Replace collision geoms (group 0) with box soles; visuals (group 1) never collide.
     for geom in list(spec.geoms):
@@ -304,7 +286,7 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
         UnknownSceneError: another scene name.
     """
     if scene not in names.SCENES:
-        raise UnknownSceneError(f"unknown scene {scene!r} for g1; scenes: {', '.join(names.SCENES)}")
+        raise UnknownSceneError(f"unknown scene {scene!r} for {names.ROBOT_NAME}; scenes: {', '.join(names.SCENES)}")
     spec = build_spec()
     obstacles = _add_obstacles(spec) if scene == "course" else ()
     model = spec.compile()
@@ -338,6 +320,7 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
         obstacles=obstacles,
         arm_scene=_arm_scene(model),
         walking=WALKING,
+        biped=BIPED,
         sensors=SENSORS,
         cameras=CAMERAS,
     )

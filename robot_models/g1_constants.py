@@ -24,6 +24,7 @@ LEFT_LEG_JOINTS: Final = (
     "left_ankle_roll_joint",
 )
 RIGHT_LEG_JOINTS: Final = tuple(name.replace("left_", "right_") for name in LEFT_LEG_JOINTS)
+KNEE_JOINTS: Final = ("left_knee_joint", "right_knee_joint")
 WAIST_JOINTS: Final = ("waist_yaw_joint", "waist_roll_joint", "waist_pitch_joint")
 LEFT_ARM_JOINTS: Final = (
     "left_shoulder_pitch_joint",

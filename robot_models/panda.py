@@ -19,8 +19,9 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from robot_models import panda_constants as names
+import robot_models.panda_constants as names
 from robot_models.cameras import CameraLayout, add_optical_camera, prepare_scene_for_cameras
+from robot_models.physics import set_physics_options
 from robot_models.sensors import SensorLayout, WristLayout, add_sensors
 from robot_models.spec import (
     ArmScene,
@@ -33,6 +34,7 @@ from robot_models.spec import (
 )
 
 PHYSICS_TIMESTEP_S = 0.002
+IMPRATIO = 10.0  # frictional / normal contact impedance: a friction grasp that holds
 CONTROL_DECIMATION = 2  # 250 Hz control
 ARM_KP = (4500.0, 4500.0, 3500.0, 3500.0, 2000.0, 2000.0, 2000.0)
 ARM_DAMPRATIO = 1.0
@@ -70,10 +72,7 @@ def build_spec() -> mujoco.MjSpec:
     urdf = urdf.replace("</robot>", '<mujoco><compiler fusestatic="false"/></mujoco></robot>')
     spec = mujoco.MjSpec.from_string(urdf)
     spec.modelname = names.ROBOT_NAME
-    spec.option.timestep = PHYSICS_TIMESTEP_S
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
-    spec.option.impratio = 10.0
+    set_physics_options(spec, timestep_s=PHYSICS_TIMESTEP_S, impratio=IMPRATIO)
 
     for equality in list(spec.equalities):
         spec.delete(equality)
@@ -162,7 +161,7 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
         UnknownSceneError: another scene name.
     """
     if scene not in names.SCENES:
-        raise UnknownSceneError(f"unknown scene {scene!r} for panda; scenes: {', '.join(names.SCENES)}")
+        raise UnknownSceneError(f"unknown scene {scene!r} for {names.ROBOT_NAME}; scenes: {', '.join(names.SCENES)}")
     spec = build_spec()
     model = spec.compile()
     qpos = _home_qpos(model)

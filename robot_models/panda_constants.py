@@ -39,7 +39,6 @@ BOX_COLORS: Final = ((0.85, 0.2, 0.2, 1.0), (0.2, 0.7, 0.25, 1.0), (0.2, 0.35, 0
 HOME_KEYFRAME: Final = "home"
 HOME_ARM_QPOS: Final = (0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785)
 FINGER_OPEN: Final = 0.04
-FINGER_CLOSED: Final = 0.0
 
 # A fixed scene camera in front of the table, off to the robot's right, looking down at the boxes.
 SCENE_CAMERA: Final = "scene_camera"  # ROS name (topics /scene_camera/...) and the MuJoCo camera's name

@@ -9,8 +9,10 @@ from dataclasses import dataclass, field
 
 import mujoco
 
+from robot_models.biped import BipedDescription
 from robot_models.cameras import CameraLayout
 from robot_models.sensors import SensorLayout
+from robot_models.validation import check_range
 
 
 class RobotModelError(Exception):
@@ -117,8 +119,9 @@ class WalkingLimits:
         if not 0.0 < low <= self.default_speed_mps <= high:
             raise ValueError(f"walking speeds must satisfy 0 < low <= default <= high, got {low}, "
                              f"{self.default_speed_mps}, {high} m/s")
-        if self.max_walk_distance_m <= 0.0 or self.fall_height_m <= 0.0 or not 0.0 < self.fall_tilt_rad < math.pi:
-            raise ValueError("max_walk_distance_m and fall_height_m must be positive, fall_tilt_rad in (0, pi)")
+        check_range("max_walk_distance_m", self.max_walk_distance_m, 0, low_open=True, unit="m")
+        check_range("fall_height_m", self.fall_height_m, 0, low_open=True, unit="m")
+        check_range("fall_tilt_rad", self.fall_tilt_rad, 0, math.pi, low_open=True, high_open=True, unit="rad")
 
 
 @dataclass(frozen=True)
@@ -167,6 +170,7 @@ class RobotSpec:
         grasp: defaults and limits of grasping (None for a robot without grippers).
         sensors: the IMU, sole and wrist sensors (names, frames); none by default.
         cameras: the scene's cameras (names, optical frames, field of view, tilt mounts); none by default.
+        biped: what the walking controller needs to know of a biped (None for a robot that does not walk).
     """
 
     name: str
@@ -191,6 +195,7 @@ class RobotSpec:
     grasp: GraspLimits | None = None
     sensors: SensorLayout = field(default_factory=SensorLayout)
     cameras: tuple[CameraLayout, ...] = ()
+    biped: BipedDescription | None = None
 
     def __post_init__(self) -> None:
         if self.arm_scene.grippers and self.grasp is None:

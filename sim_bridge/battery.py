@@ -8,16 +8,16 @@ whatever rate anyone reads it at; it writes no command.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
 from robot_models.sensors import BatteryLayout
+from robot_models.validation import check_range
 from sim_bridge.controller import Controller
 
-FULL_PERCENT = 100.0
+FULL_PERCENT = 100  # [%] (a whole number, so that messages read [0, 100])
 SMOOTHING_S = 0.5  # time constant of the reported power [s]
 
 
@@ -47,12 +47,10 @@ class BatteryConfig:
                              voltage_full_v=pack.voltage_full_v, voltage_empty_v=pack.voltage_empty_v)
 
     def __post_init__(self) -> None:
-        limits = {"capacity_wh": (10.0, 10000.0), "idle_power_w": (0.0, 2000.0), "drive_efficiency": (0.05, 1.0),
-                  "low_threshold_percent": (0.0, 100.0)}
-        for name, (low, high) in limits.items():
-            value = getattr(self, name)
-            if not (math.isfinite(value) and low <= value <= high):
-                raise ValueError(f"battery {name} must be in [{low:g}, {high:g}], got {value}")
+        check_range("battery capacity_wh", self.capacity_wh, 10, 10000, unit="Wh")
+        check_range("battery idle_power_w", self.idle_power_w, 0, 2000, unit="W")
+        check_range("battery drive_efficiency", self.drive_efficiency, 0.05, 1)
+        check_range("battery low_threshold_percent", self.low_threshold_percent, 0, FULL_PERCENT, unit="%")
 
 
 class Battery:
@@ -99,8 +97,7 @@ class Battery:
         Raises:
             ValueError: outside 0..100 or not finite.
         """
-        if not (math.isfinite(percent) and 0.0 <= percent <= FULL_PERCENT):
-            raise ValueError(f"battery level must be in [0, 100] %, got {percent}")
+        check_range("battery level", percent, 0, FULL_PERCENT, unit="%")
         self._energy_j = self._capacity_j * percent / FULL_PERCENT
 
     def reset(self) -> None:

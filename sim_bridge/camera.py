@@ -10,8 +10,8 @@ OpenCV and ``sensor_msgs/CameraInfo``) that is
 a point (x, y, z) in the camera's optical frame (z forward, x right, y down) landing at
 (u, v) = (fx x / z + cx, fy y / z + cy). ``tests/core/test_camera.py`` checks it on rendered images.
 
-Rendering runs on the CPU here (EGL on Mesa's llvmpipe), without shadows (a shadow map costs several
-times the frame); see ``benchmarks/camera_bench.py`` for what a frame costs.
+Rendering runs on the CPU here (EGL on Mesa's llvmpipe), without shadows and without multisampling,
+both costly on the CPU; see ``benchmarks/camera_bench.py`` for what a frame costs.
 """
 
 from __future__ import annotations
@@ -138,15 +138,15 @@ class CameraRenderer:
         self._camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
         self._camera.fixedcamid = camera_id
         self._scratch = mujoco.MjData(model)  # the pose is computed here: the caller's data is only read
-        # No multisampling (each pixel one sample, as a sensor's pixels): on the CPU it halves a frame's cost. The
-        # context reads the sample count when it is made; the model's own setting (scenario videos) is kept.
+        # No multisampling (each pixel one sample, as a sensor's pixels; costly on the CPU). The context reads
+        # the sample count when it is made; the model's own setting (scenario videos) is kept.
         samples = int(model.vis.quality.offsamples)
         model.vis.quality.offsamples = 0
         try:
             self._renderer: mujoco.Renderer | None = mujoco.Renderer(model, height=height, width=width)
         finally:
             model.vis.quality.offsamples = samples
-        # No shadows: on the CPU a light's shadow map (4096^2 texels) costs several times the frame itself.
+        # No shadows: a light's shadow map (4096^2 texels) is costly to render on the CPU.
         self._renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
 
     @property

@@ -51,7 +51,7 @@ class _TiltMount:
 
 
 def _as_slice(indices: np.ndarray) -> slice | np.ndarray:
-    """A slice when the indices are consecutive (indexing then gives a view, ~3x cheaper)."""
+    """A slice when the indices are consecutive (indexing then gives a view, cheaper than gathering)."""
     if len(indices) and np.array_equal(indices, np.arange(indices[0], indices[0] + len(indices))):
         return slice(int(indices[0]), int(indices[0]) + len(indices))
     return indices

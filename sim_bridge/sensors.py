@@ -17,6 +17,7 @@ import mujoco
 import numpy as np
 
 from robot_models.sensors import SensorLayout
+from robot_models.validation import check_range
 
 _SENSOR_BIT = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
 
@@ -41,9 +42,7 @@ class ImuNoise:
 
     def __post_init__(self) -> None:
         for name in ("gyro_noise", "accel_noise", "gyro_bias", "accel_bias"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0.0):
-                raise ValueError(f"IMU {name} must be a finite number >= 0, got {value}")
+            check_range(f"IMU {name}", getattr(self, name), 0)
 
 
 @dataclass(frozen=True)
@@ -66,9 +65,7 @@ class WristNoise:
 
     def __post_init__(self) -> None:
         for name in ("force_bias", "torque_bias", "force_drift", "force_noise", "torque_noise"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0.0):
-                raise ValueError(f"wrist sensor {name} must be a finite number >= 0, got {value}")
+            check_range(f"wrist sensor {name}", getattr(self, name), 0)
 
 
 @dataclass(frozen=True)

@@ -3,6 +3,6 @@
 Never use it from inside an executor callback: its waits block the calling thread.
 """
 
-from sim_client.session import RosSession, TopicRecorder, WaitTimeout
+from sim_ros.session import RosSession, TopicRecorder, WaitTimeout
 
 __all__ = ["RosSession", "TopicRecorder", "WaitTimeout"]

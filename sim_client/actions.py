@@ -1,4 +1,4 @@
-"""Typed action clients and a parameter helper, built on :class:`sim_client.session.RosSession`.
+"""Typed action clients and a parameter helper, built on :class:`sim_ros.session.RosSession`.
 
 One small class per action of the project::
 
@@ -28,9 +28,9 @@ from rclpy.action.client import ClientGoalHandle
 from rclpy.parameter import Parameter, parameter_value_to_python
 from unique_identifier_msgs.msg import UUID
 
-from sim_client.session import RESPONSE_QOS, RosSession, WaitTimeout
 from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, Walk
 from sim_interfaces.srv import Push
+from sim_ros.session import RESPONSE_QOS, RosSession, WaitTimeout
 
 GoalT = TypeVar("GoalT")
 FeedbackT = TypeVar("FeedbackT")
@@ -102,7 +102,7 @@ class FeedbackSample(Generic[FeedbackT]):
 class GoalHandle(Generic[FeedbackT, ResultT]):
     """A sent goal: its feedback (latest and history), cancel, and wait for the outcome."""
 
-    def __init__(self, client: _ActionClientBase, goal: Any) -> None:
+    def __init__(self, client: SimActionClient, goal: Any) -> None:
         self._client = client
         self._session = client.session
         self.goal = goal
@@ -214,8 +214,8 @@ def wait_until_answering(session: RosSession, client: ActionClient, timeout: flo
                 continue
 
 
-class _ActionClientBase(Generic[GoalT, FeedbackT, ResultT]):
-    """One action client on a session. Subclasses set ``action_type`` and ``default_name``."""
+class SimActionClient(Generic[GoalT, FeedbackT, ResultT]):
+    """One action client on a session; a subclass per action sets ``action_type``, ``default_name`` and its goal builder."""
 
     action_type: ClassVar[Any]
     default_name: ClassVar[str]
@@ -293,7 +293,7 @@ def push_request(body: str, force_n: tuple[float, float, float], torque_nm: tupl
     return request
 
 
-class MoveArmClient(_ActionClientBase[MoveArm.Goal, MoveArm.Feedback, MoveArm.Result]):
+class MoveArmClient(SimActionClient[MoveArm.Goal, MoveArm.Feedback, MoveArm.Result]):
     """``/move_arm`` (served by ``/arm``)."""
 
     action_type = MoveArm
@@ -319,7 +319,7 @@ class MoveArmClient(_ActionClientBase[MoveArm.Goal, MoveArm.Feedback, MoveArm.Re
         return goal
 
 
-class PickPlaceClient(_ActionClientBase[PickPlace.Goal, PickPlace.Feedback, PickPlace.Result]):
+class PickPlaceClient(SimActionClient[PickPlace.Goal, PickPlace.Feedback, PickPlace.Result]):
     """``/pick_place`` (served by ``/arm``)."""
 
     action_type = PickPlace
@@ -336,7 +336,7 @@ class PickPlaceClient(_ActionClientBase[PickPlace.Goal, PickPlace.Feedback, Pick
         return goal
 
 
-class WalkClient(_ActionClientBase[Walk.Goal, Walk.Feedback, Walk.Result]):
+class WalkClient(SimActionClient[Walk.Goal, Walk.Feedback, Walk.Result]):
     """``/walk`` (served by ``/locomotion``)."""
 
     action_type = Walk
@@ -348,7 +348,7 @@ class WalkClient(_ActionClientBase[Walk.Goal, Walk.Feedback, Walk.Result]):
         return Walk.Goal(distance=float(distance), speed=float(speed), timeout=float(timeout))
 
 
-class NavigateClient(_ActionClientBase[NavigateToPose.Goal, NavigateToPose.Feedback, NavigateToPose.Result]):
+class NavigateClient(SimActionClient[NavigateToPose.Goal, NavigateToPose.Feedback, NavigateToPose.Result]):
     """``/navigate_to_pose`` (served by ``/locomotion``)."""
 
     action_type = NavigateToPose
@@ -360,7 +360,7 @@ class NavigateClient(_ActionClientBase[NavigateToPose.Goal, NavigateToPose.Feedb
         return NavigateToPose.Goal(pose=_pose(x, y, 0.0, yaw=yaw, frame=frame))
 
 
-ACTION_CLIENTS: dict[str, type[_ActionClientBase]] = {
+ACTION_CLIENTS: dict[str, type[SimActionClient]] = {
     "move_arm": MoveArmClient,
     "pick_place": PickPlaceClient,
     "walk": WalkClient,

@@ -26,7 +26,8 @@ from typing import Any
 
 import yaml
 
-from nodes.processes import BIN
+import robot_models
+from sim_ros.processes import BIN
 
 GOAL_WAIT_S = 3600.0
 
@@ -48,15 +49,15 @@ def _interrupts() -> Iterator[threading.Event]:
 
 
 def _feedback_line(feedback: Any, t: float) -> str:
-    from sim_client.scenario.runner import _feedback_summary
+    from sim_client.scenario.running.progress import feedback_summary
 
-    summary = _feedback_summary(feedback)
+    summary = feedback_summary(feedback)
     return f"[t={t:8.2f} s] {summary}"
 
 
 def _run_goal(client_type: Any, goal: Any, action_label: str, timeout: float) -> int:
     from sim_client.actions import ActionError
-    from sim_client.session import RosSession, WaitTimeout
+    from sim_ros.session import RosSession, WaitTimeout
 
     with RosSession("sim_cli", use_sim_time=True) as session:
         client = client_type(session)
@@ -98,8 +99,8 @@ def _run_goal(client_type: Any, goal: Any, action_label: str, timeout: float) ->
 
 def _push(options: argparse.Namespace) -> int:
     from sim_client.actions import push_request
-    from sim_client.session import RosSession, WaitTimeout
     from sim_interfaces.srv import Push
+    from sim_ros.session import RosSession, WaitTimeout
 
     request = push_request(options.body, options.force, options.torque, options.duration)
     with RosSession("sim_cli_push", use_sim_time=False) as session:
@@ -123,7 +124,7 @@ def _parse_value(text: str) -> Any:
 
 def _param(options: argparse.Namespace) -> int:
     from sim_client.actions import ParameterError, Parameters
-    from sim_client.session import RosSession, WaitTimeout
+    from sim_ros.session import RosSession, WaitTimeout
 
     with RosSession("sim_cli_param", use_sim_time=False) as session:
         params = Parameters(session, options.node, timeout=options.timeout)
@@ -171,9 +172,9 @@ def _watch_view(options: argparse.Namespace) -> int:
     from std_msgs.msg import Float64
 
     from sim_client.actions import ACTION_CLIENTS
-    from sim_client.scenario.artifacts import yaw_of
-    from sim_client.scenario.runner import _feedback_summary
-    from sim_client.session import RosSession
+    from sim_client.scenario.model.series import yaw_of
+    from sim_client.scenario.running.progress import feedback_summary
+    from sim_ros.session import RosSession
 
     with RosSession("sim_watch", use_sim_time=False) as session:
         clock = session.record(Clock, "/clock", keep=2)
@@ -213,7 +214,7 @@ def _watch_view(options: argparse.Namespace) -> int:
                     text = "no feedback yet"
                     for message in reversed(feedback[name].messages()):
                         if bytes(message.goal_id.uuid) == uuid:
-                            text = _feedback_summary(message.feedback)
+                            text = feedback_summary(message.feedback)
                             break
                     table.add_row(f"goal {name} {uuid.hex()[:8]}", text)
             if not any_goal:
@@ -243,7 +244,7 @@ def _snapshot(options: argparse.Namespace) -> int:
     from matplotlib import image as mpimg
     from sensor_msgs.msg import Image
 
-    from sim_client.session import RosSession, WaitTimeout
+    from sim_ros.session import RosSession, WaitTimeout
 
     with RosSession("sim_snapshot", use_sim_time=True) as session:
         images = session.record(Image, f"/{options.camera}/image_raw", keep=1)
@@ -268,7 +269,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="sim", description="Drive the headless simulator: bring it up, send goals, tune parameters, watch.")
     sub = parser.add_subparsers(dest="command", required=True)
     up = sub.add_parser("up", help="bring up /sim and every server for the robot (bringup)")
-    up.add_argument("--robot", choices=("g1", "panda"), default="g1")
+    up.add_argument("--robot", choices=robot_models.ROBOT_NAMES, default=robot_models.G1)
     up.add_argument("--rtf", type=float, default=1.0, help="real-time factor; 0 = as fast as possible")
     walk = sub.add_parser("walk", help="walk a distance [m] straight ahead (negative = backwards)")
     walk.add_argument("distance", type=float)

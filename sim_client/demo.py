@@ -26,8 +26,9 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     os.environ.setdefault("MUJOCO_GL", "egl")
 
-    from sim_client.scenario import schema
-    from sim_client.scenario.runner import RunOptions, run
+    from sim_client.scenario.model import schema
+    from sim_client.scenario.running.options import RunOptions
+    from sim_client.scenario.running.runner import run
 
     rows: list[tuple[str, str, str]] = []
     for name in options.scenarios:

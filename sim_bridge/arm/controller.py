@@ -16,7 +16,9 @@ import mujoco
 import numpy as np
 
 from robot_models import RobotSpec
-from sim_bridge.arm.kinematics import ArmInfo, ArmKinematics, interpolate_quat, mat_to_quat, rotation_error, validate_pose
+from sim_bridge.arm.description import ArmInfo
+from sim_bridge.arm.kinematics import ArmKinematics
+from sim_bridge.arm.poses import interpolate_quat, mat_to_quat, rotation_error, validate_pose
 from sim_bridge.arm.types import ArmControllerConfig, ArmMode, ArmStatus, GripperStatus
 from sim_bridge.errors import InvalidGoalError, SimError
 from sim_bridge.state import Pose

@@ -16,8 +16,9 @@ import mujoco
 import numpy as np
 
 from robot_models import ArmScene
+from robot_models.validation import check_range, is_number
 from sim_bridge.arm.controller import ArmController
-from sim_bridge.arm.kinematics import quat_to_mat
+from sim_bridge.arm.poses import quat_to_mat
 from sim_bridge.errors import InvalidGoalError, UnknownNameError
 from sim_bridge.state import Pose
 
@@ -81,10 +82,8 @@ class PickPlaceGoal:
 
     def __post_init__(self) -> None:
         for name in ("approach_height", "lift_height", "transport_speed", "contact_speed", "grip_force", "placement_tolerance"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0.0):
-                raise InvalidGoalError(f"{name} must be a finite number > 0, got {value}")
-        if len(self.place_position) != 3 or not all(math.isfinite(v) for v in self.place_position):
+            check_range(name, getattr(self, name), 0, low_open=True, error=InvalidGoalError)
+        if len(self.place_position) != 3 or not all(is_number(v) for v in self.place_position):
             raise InvalidGoalError(f"place_position needs 3 finite values [m], got {self.place_position}")
 
 

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import enum
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from robot_models.validation import check_range
 from sim_bridge.errors import InvalidGoalError
 from sim_bridge.state import Pose
 
@@ -64,24 +64,15 @@ class ArmControllerConfig:
     gravity_feedforward: bool = True
 
     def __post_init__(self) -> None:
-        positive = {
-            "position_tolerance": self.position_tolerance,
-            "orientation_tolerance": self.orientation_tolerance,
-            "frame_position_cost": self.frame_position_cost,
-            "joint_velocity_limit": self.joint_velocity_limit,
-            "collision_detection_distance": self.collision_detection_distance,
-            "settle_joint_speed": self.settle_joint_speed,
-            "stall_time": self.stall_time,
-            "default_linear_speed": self.default_linear_speed,
-            "default_angular_speed": self.default_angular_speed,
-        }
-        for name, value in positive.items():
-            if not (math.isfinite(value) and value > 0.0):
-                raise InvalidGoalError(f"{name} must be a finite number > 0, got {value}")
-        if self.max_ik_iterations_per_tick < 1 or self.offline_ik_iterations < 1:
-            raise InvalidGoalError("IK iteration counts must be >= 1")
-        if self.frame_orientation_cost < 0.0 or self.posture_cost < 0.0 or self.lm_damping < 0.0:
-            raise InvalidGoalError("costs and damping must be >= 0")
+        positive = ("position_tolerance", "orientation_tolerance", "frame_position_cost", "joint_velocity_limit",
+                    "collision_detection_distance", "settle_joint_speed", "stall_time", "default_linear_speed",
+                    "default_angular_speed")
+        for name in positive:
+            check_range(name, getattr(self, name), 0, low_open=True, error=InvalidGoalError)
+        for name in ("max_ik_iterations_per_tick", "offline_ik_iterations"):
+            check_range(name, getattr(self, name), 1, error=InvalidGoalError)
+        for name in ("frame_orientation_cost", "posture_cost", "lm_damping"):
+            check_range(name, getattr(self, name), 0, error=InvalidGoalError)
 
 
 @dataclass(frozen=True)

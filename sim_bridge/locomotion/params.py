@@ -2,24 +2,19 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from types import MappingProxyType
 from typing import Final
 
+from robot_models.biped import StepLimits
+from robot_models.validation import check_range
 from sim_bridge.errors import InvalidGoalError
 
-MAX_STEP_FORWARD = 0.40  # [m]
-MAX_STEP_BACKWARD = 0.18  # [m]
-MAX_STEP_LATERAL = 0.18  # sideways displacement of the leading foot in one step [m]
-MAX_STEP_TURN = 0.45  # [rad]
-MAX_ADVANCE_RATE = 1.20  # step advance per second of swing, i.e. half the mean swing-foot speed [m/s]
 # Cadence follows speed: up to CADENCE_FROM_SPEED the configured timing holds; from there to
 # CADENCE_FULL_SPEED both phase durations shrink linearly to CADENCE_SWING_SCALE and
-# CADENCE_DOUBLE_SCALE of their configured values (0.35/0.10 s -> 0.30/0.08 s with the defaults).
-# Measured: with the 0.35/0.10 s timing the 0.36 m steps of 0.8 m/s straighten the stance knee and
-# fall; at 0.30/0.08 s (0.30 m steps) 0.8 m/s walks with 0.1-0.4 cm/m of drift.
+# CADENCE_DOUBLE_SCALE of their configured values (0.35/0.10 s -> 0.30/0.08 s with the defaults):
+# shorter, quicker steps rather than steps so long that the stance knee straightens.
 CADENCE_FROM_SPEED = 0.6  # [m/s]
 CADENCE_FULL_SPEED = 0.8  # [m/s]
 CADENCE_SWING_SCALE = 0.30 / 0.35
@@ -41,7 +36,9 @@ PARAMETER_RANGES: Final[Mapping[str, tuple[float, float, str]]] = MappingProxyTy
 
 @dataclass(frozen=True)
 class GaitParameters:
-    """Timing, swing height and command limits of the gait. Ranges are in :data:`PARAMETER_RANGES`.
+    """Timing, swing height and command limits of the gait, and the step-adjustment switches.
+
+    Ranges of the numbers are in :data:`PARAMETER_RANGES`.
 
     Attributes:
         step_duration: single-support (swing) time of one step [s], in [0.25, 0.80].
@@ -53,9 +50,14 @@ class GaitParameters:
         max_yaw_rate: turning rate limit (a magnitude) [rad/s], in [0, 1.0].
         max_acceleration: how fast the walking speed follows the command [m/s^2], in [0.05, 2.0].
         max_yaw_acceleration: how fast the turning rate follows the command [rad/s^2], in [0.1, 4.0].
+        timing_adaptation: shorten a swing whose landing, as the DCM needs it, is out of reach
+            (:mod:`sim_bridge.locomotion.adjustment`).
+        timing_crossover: count a needed landing inside the other foot's reach limit as out of
+            reach too (with ``timing_adaptation``).
 
     Raises:
-        InvalidGoalError: a value is not finite or is outside its range (the message names the range).
+        InvalidGoalError: a number is not finite or is outside its range (the message names the
+            range), or a switch is not a bool.
     """
 
     step_duration: float = 0.35
@@ -67,16 +69,17 @@ class GaitParameters:
     max_yaw_rate: float = 0.60
     max_acceleration: float = 0.50
     max_yaw_acceleration: float = 1.00
+    timing_adaptation: bool = True
+    timing_crossover: bool = True
 
     def __post_init__(self) -> None:
         for item in fields(self):
             value = getattr(self, item.name)
-            low, high, description = PARAMETER_RANGES[item.name]
-            is_number = isinstance(value, (int, float)) and not isinstance(value, bool)
-            if not is_number or not math.isfinite(value) or not low <= value <= high:
-                raise InvalidGoalError(
-                    f"gait parameter {item.name}={value!r} is outside the allowed range [{low}, {high}] ({description})"
-                )
+            if item.name in PARAMETER_RANGES:
+                low, high, description = PARAMETER_RANGES[item.name]
+                check_range(f"gait parameter {item.name} ({description})", value, low, high, error=InvalidGoalError)
+            elif not isinstance(value, bool):
+                raise InvalidGoalError(f"gait switch {item.name} must be True or False, got {value!r}")
 
     def timing(self, speed: float) -> tuple[float, float]:
         """Single- and double-support durations [s] at a walking speed [m/s] (its magnitude counts).
@@ -91,25 +94,24 @@ class GaitParameters:
             self.double_support_duration * (1.0 - fraction * (1.0 - CADENCE_DOUBLE_SCALE)),
         )
 
-    @property
-    def speed_limits(self) -> tuple[float, float, float, float]:
-        """Effective command limits (forward, backward, lateral [m/s], yaw [rad/s]).
+    def speed_limits(self, steps: StepLimits) -> tuple[float, float, float, float]:
+        """Effective command limits (forward, backward, lateral [m/s], yaw [rad/s]) for a robot's steps.
 
         The configured maxima, further reduced so that one step never exceeds what the legs reach
-        (0.40 m forward, 0.18 m backward, a 0.18 m sideways lead step, 0.45 rad of turn) and the
-        swing foot never has to travel faster than it can (1.2 m of advance per second of swing),
-        with the timing :meth:`timing` gives at that speed.
+        (``steps``: the longest step forward and backward, the sideways lead step, the turn) and the
+        swing foot never has to travel faster than it can (``steps.advance_rate_mps``), with the
+        timing :meth:`timing` gives at that speed.
         """
         swing, double = self.timing(self.max_forward_speed)
         period = swing + double
-        forward = min(self.max_forward_speed, min(MAX_STEP_FORWARD, MAX_ADVANCE_RATE * swing) / period)
+        forward = min(self.max_forward_speed, min(steps.forward_m, steps.advance_rate_mps * swing) / period)
         period = self.step_period
-        swing_reach = MAX_ADVANCE_RATE * self.step_duration
+        swing_reach = steps.advance_rate_mps * self.step_duration
         return (
             forward,
-            min(self.max_backward_speed, min(MAX_STEP_BACKWARD, swing_reach) / period),
-            min(self.max_lateral_speed, MAX_STEP_LATERAL / (2.0 * period)),
-            min(self.max_yaw_rate, MAX_STEP_TURN / period),
+            min(self.max_backward_speed, min(steps.backward_m, swing_reach) / period),
+            min(self.max_lateral_speed, steps.lateral_m / (2.0 * period)),
+            min(self.max_yaw_rate, steps.turn_rad / period),
         )
 
     @property

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass
+from typing import NamedTuple
 
 
 class LocomotionMode(enum.Enum):
@@ -13,6 +14,15 @@ class LocomotionMode(enum.Enum):
     WALKING = "walking"
     STOPPING = "stopping"
     FALLEN = "fallen"
+
+
+class GaitPhase(NamedTuple):
+    """Where the gait is: the phase's kind (idle, shift, single, double, settle, balance, fallen), the time
+    spent in it and its planned duration [s]."""
+
+    kind: str
+    elapsed: float
+    duration: float
 
 
 @dataclass(frozen=True)

@@ -7,15 +7,15 @@ reports its stages. "Safe" after a cancel or a timeout means: the arm holds wher
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
+from robot_models.validation import check_range
 from sim_bridge.arm import ArmController, PickPlace, PickPlaceFailure, PickPlaceGoal, PickPlaceProgress
-from sim_bridge.arm.kinematics import rotation_error
+from sim_bridge.arm.poses import rotation_error
 from sim_bridge.errors import InvalidGoalError
 from sim_bridge.skills.base import SkillOutcome, Values
 from sim_bridge.state import Pose
@@ -57,13 +57,10 @@ class MoveArmGoal:
     timeout_s: float
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.position_tolerance) and self.position_tolerance > 0.0):
-            raise InvalidGoalError(f"position_tolerance must be > 0 m, got {self.position_tolerance}")
-        if not (math.isfinite(self.orientation_tolerance) and self.orientation_tolerance >= 0.0):
-            raise InvalidGoalError(f"orientation_tolerance must be >= 0 rad (0 = position only), "
-                                   f"got {self.orientation_tolerance}")
-        if not (math.isfinite(self.timeout_s) and self.timeout_s > 0.0):
-            raise InvalidGoalError(f"timeout must be > 0 s, got {self.timeout_s}")
+        check_range("position_tolerance", self.position_tolerance, 0, low_open=True, unit="m", error=InvalidGoalError)
+        check_range("orientation_tolerance (0 = position only)", self.orientation_tolerance, 0, unit="rad",
+                    error=InvalidGoalError)
+        check_range("timeout", self.timeout_s, 0, low_open=True, unit="s", error=InvalidGoalError)
 
     @property
     def position_only(self) -> bool:

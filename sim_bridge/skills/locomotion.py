@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 
 from robot_models import WalkingLimits
+from robot_models.validation import check_range, is_number
 from sim_bridge.errors import InvalidGoalError
 from sim_bridge.locomotion import LocomotionMode, WalkingController
 from sim_bridge.navigation import NoPathError, OccupancyGrid, PathFollower, plan_path
@@ -57,7 +58,7 @@ def _free_joint_qpos(model: mujoco.MjModel, base_body: str) -> int:
 
 
 def _finite(**values: float) -> None:
-    bad = [name for name, value in values.items() if not math.isfinite(value)]
+    bad = [name for name, value in values.items() if not is_number(value)]
     if bad:
         raise InvalidGoalError(f"{', '.join(bad)} must be finite numbers")
 
@@ -89,8 +90,7 @@ class WalkGoal:
         if self.speed_mps != 0.0 and not low <= self.speed_mps <= high:
             raise InvalidGoalError(f"speed must be in [{low}, {high}] m/s (0 = the walking_speed parameter), "
                                    f"got {self.speed_mps}")
-        if self.timeout_s < 0.0:
-            raise InvalidGoalError(f"timeout must be >= 0 s (0 = automatic), got {self.timeout_s}")
+        check_range("timeout (0 = automatic)", self.timeout_s, 0, unit="s", error=InvalidGoalError)
 
 
 @dataclass(frozen=True)

@@ -17,13 +17,16 @@ import mujoco
 import numpy as np
 
 from robot_models import RobotSpec
+from robot_models.validation import check_range
 from sim_bridge.errors import InvalidGoalError
 from sim_bridge.locomotion import WalkingController
 from sim_bridge.skills.base import SkillOutcome, Values
 from sim_bridge.skills.locomotion import LEGS
 
 DEFAULT_TOLERANCE_RAD = 0.05
+MAX_TOLERANCE_RAD = 0.5
 DEFAULT_TIMEOUT_S = 20.0
+MAX_TIMEOUT_S = 600
 POSTURE_DURATION_S = 1.5  # the servo targets move to the default pose over this much sim time
 REST_SPEED_RAD_S = 0.05  # every joint slower than this counts as at rest
 STOPPING, POSTURE, SETTLING = "stopping", "posture", "settling"
@@ -37,10 +40,9 @@ class ResetPoseGoal:
     timeout_s: float = 0.0
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.tolerance_rad) and 0.0 <= self.tolerance_rad <= 0.5):
-            raise InvalidGoalError(f"tolerance must be in [0, 0.5] rad (0 = {DEFAULT_TOLERANCE_RAD}), got {self.tolerance_rad}")
-        if not (math.isfinite(self.timeout_s) and 0.0 <= self.timeout_s <= 600.0):
-            raise InvalidGoalError(f"timeout must be in [0, 600] s (0 = {DEFAULT_TIMEOUT_S:g}), got {self.timeout_s}")
+        check_range(f"tolerance (0 = {DEFAULT_TOLERANCE_RAD:g} rad)", self.tolerance_rad, 0, MAX_TOLERANCE_RAD, unit="rad",
+                    error=InvalidGoalError)
+        check_range(f"timeout (0 = {DEFAULT_TIMEOUT_S:g} s)", self.timeout_s, 0, MAX_TIMEOUT_S, unit="s", error=InvalidGoalError)
 
 
 class ResetPoseSkill:

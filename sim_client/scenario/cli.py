@@ -9,7 +9,7 @@ import os
 import pathlib
 import sys
 
-from sim_client.scenario import schema
+from sim_client.scenario.model import schema
 
 
 def _list() -> int:
@@ -26,29 +26,34 @@ def _list() -> int:
 
 
 def _kinds() -> int:
-    """What a scenario file may use, from the registry that parses, runs and describes it."""
-    from sim_client.scenario import registry, robots
+    """What a scenario file may use, from the kinds that parse, run and describe it."""
+    import robot_models
+    from sim_client.scenario.model.actions import ACTIONS
+    from sim_client.scenario.model.conditions import COMPARISONS
+    from sim_client.scenario.model.measures import MEASURES
+    from sim_client.scenario.model.robots import robot_facts
+    from sim_client.scenario.model.steps import STEPS
 
     print("steps (each may carry mark: NAME):")
-    for step in registry.STEPS.values():
+    for step in STEPS.values():
         print(f"  {step.name:<18} {step.about}")
     print("measures (in expectations and conditions; marks: start, end, step marks, <goal>.sent, <goal>.done):")
-    for measure in registry.MEASURES.values():
+    for measure in MEASURES.values():
         keys = ", ".join(key.name + ("" if key.required else "?") for key in measure.keys)
         unit = f" [{measure.unit}]" if isinstance(measure.unit, str) and measure.unit else ""
         walking = " (walking robots)" if measure.walking else ""
         print(f"  {measure.name:<18} {keys:<28} {measure.about}{unit}{walking}")
-    print(f"comparisons: {', '.join(registry.COMPARISONS)} (near with tol or rel_tol)")
+    print(f"comparisons: {', '.join(COMPARISONS)} (near with tol or rel_tol)")
     print("actions (send_goal):")
-    for action in registry.ACTIONS.values():
-        robots_with = [name for name in robots.ROBOT_NAMES if action.available(robots.robot_facts(name))]
+    for action in ACTIONS.values():
+        robots_with = [name for name in robot_models.ROBOT_NAMES if action.available(robot_facts(name))]
         print(f"  {action.name:<18} goal: {action.fields}")
         print(f"  {'':<18} robots: {', '.join(robots_with)}; error codes: {', '.join(action.error_names)}")
     return 0
 
 
 def _sweep(options: argparse.Namespace) -> int:
-    from sim_client.scenario.sweep import SweepError, parse_grid, run_sweep
+    from sim_client.scenario.running.sweep import SweepError, parse_grid, run_sweep
 
     try:
         path = schema.find(options.scenario)
@@ -126,7 +131,8 @@ def main(argv: list[str] | None = None) -> int:
     except schema.ScenarioError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    from sim_client.scenario.runner import RunOptions, run as run_scenario
+    from sim_client.scenario.running.options import RunOptions
+    from sim_client.scenario.running.runner import run as run_scenario
 
     run_options = RunOptions(rtf=options.rtf, record=options.record or options.all, video=options.video or options.all,
                              plots=options.plots or options.all, camera=options.camera, out=options.out,

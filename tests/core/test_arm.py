@@ -13,7 +13,9 @@ import robot_models
 from robot_models import g1_constants, panda_constants
 from sim_bridge import Pose, Simulation, Slot, UnknownNameError
 from sim_bridge.arm import ArmController, ArmMode, PickPlace, PickPlaceFailure, PickPlaceGoal, PickPlaceStage, solve_ik
-from sim_bridge.arm.kinematics import OFFLINE_DT, ArmKinematics, quat_to_mat
+from sim_bridge.arm.ik_problem import OFFLINE_DT
+from sim_bridge.arm.kinematics import ArmKinematics
+from sim_bridge.arm.poses import quat_to_mat
 from sim_bridge.errors import InvalidGoalError
 
 TOOL_DOWN = np.array([0.0, 1.0, 0.0, 0.0])  # tool z axis pointing at the table

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 
@@ -9,11 +10,14 @@ import numpy as np
 import pytest
 
 import robot_models
-from robot_models import g1_constants as names
+from robot_models import RobotModelError, g1_constants as names
+from robot_models.g1_gait import BIPED as G1_BIPED
 from sim_bridge import InvalidGoalError, Simulation, Slot
 from sim_bridge.locomotion import PARAMETER_RANGES, GaitParameters, LocomotionMode, WalkingController, wbc
-from sim_bridge.locomotion.controller import MOTOR_JOINTS
-from sim_bridge.locomotion.planner import Footstep, Side, ZmpSegment, clip_to_polygon, convex_hull, dcm_reference
+from sim_bridge.locomotion.geometry import Footstep, Side
+from tests.core.locomotion_helpers import ZmpSegment, clip_to_polygon, convex_hull, dcm_reference
+
+SWITCHES = {"timing_adaptation", "timing_crossover"}  # the gait's on/off switches (not in PARAMETER_RANGES)
 
 
 @pytest.fixture(scope="module")
@@ -21,11 +25,16 @@ def g1_robot():
     return robot_models.load("g1")
 
 
+@pytest.fixture(scope="module")
+def panda_robot():
+    return robot_models.load("panda")
+
+
 @pytest.fixture
 def walker(g1_robot):
     """A fresh G1 simulation with a walking controller installed."""
     sim = Simulation(g1_robot)
-    controller = WalkingController(sim.model)
+    controller = WalkingController(sim.model, G1_BIPED)
     sim.set_controller(Slot.LOCOMOTION, controller)
     yield sim, controller
     sim.reset()  # restores the servos' gains on the shared model
@@ -69,10 +78,11 @@ def _stop_and_settle(sim: Simulation, controller: WalkingController, deadline: f
 # ----- fast unit tests ---------------------------------------------------------------------
 def test_parameter_ranges_cover_every_field_and_hold_the_defaults():
     defaults = GaitParameters()
-    assert set(PARAMETER_RANGES) == set(vars(defaults))
+    assert set(PARAMETER_RANGES) == set(vars(defaults)) - SWITCHES
     for name, (low, high, description) in PARAMETER_RANGES.items():
         assert low <= getattr(defaults, name) <= high
         assert description
+    assert all(getattr(defaults, name) is True for name in SWITCHES)
 
 
 @pytest.mark.parametrize(
@@ -85,8 +95,23 @@ def test_invalid_gait_parameters_are_refused_with_the_allowed_range(field, value
         GaitParameters(**{field: value})
 
 
+def test_a_gait_switch_must_be_a_bool():
+    with pytest.raises(InvalidGoalError, match="timing_adaptation"):
+        GaitParameters(timing_adaptation=1)  # type: ignore[arg-type]
+    assert not dataclasses.replace(GaitParameters(), timing_crossover=False).timing_crossover
+
+
+def test_the_robot_s_spec_carries_its_biped_and_a_robot_without_one_cannot_walk(g1_robot, panda_robot):
+    assert g1_robot.biped is G1_BIPED
+    assert panda_robot.biped is None
+    with pytest.raises(RobotModelError, match="no biped description"):
+        WalkingController(panda_robot.model, panda_robot.biped)
+    with pytest.raises(TypeError, match="BipedDescription"):
+        WalkingController(g1_robot.model, GaitParameters())  # type: ignore[arg-type]
+
+
 def test_set_gait_parameters_refuses_other_types_and_applies_new_limits(g1_robot):
-    controller = WalkingController(g1_robot.model)
+    controller = WalkingController(g1_robot.model, G1_BIPED)
     with pytest.raises(InvalidGoalError, match="GaitParameters"):
         controller.set_gait_parameters({"step_duration": 0.4})  # type: ignore[arg-type]
     controller.set_velocity_command(0.5, 0.0, 0.0)
@@ -96,7 +121,7 @@ def test_set_gait_parameters_refuses_other_types_and_applies_new_limits(g1_robot
 
 def test_velocity_command_is_clamped_and_non_finite_values_are_refused(g1_robot):
     params = GaitParameters()
-    controller = WalkingController(g1_robot.model)
+    controller = WalkingController(g1_robot.model, G1_BIPED)
     controller.set_velocity_command(5.0, -5.0, 5.0)
     commanded = controller.status().commanded
     assert (commanded.vx, commanded.vy, commanded.wz) == pytest.approx(
@@ -117,7 +142,7 @@ def test_cadence_follows_speed_above_0_6_m_s():
     swing, double = params.timing(0.7)
     assert 0.30 < swing < 0.35 and 0.08 < double < 0.10
     assert GaitParameters(step_duration=0.40).timing(0.8)[0] == pytest.approx(0.40 * 0.30 / 0.35)
-    assert params.speed_limits[0] == pytest.approx(0.8)
+    assert params.speed_limits(G1_BIPED.steps)[0] == pytest.approx(0.8)
 
 
 def test_dcm_reference_is_the_zmp_when_it_stays_put_and_leads_a_moving_zmp():
@@ -327,7 +352,7 @@ def test_a_failed_torque_qp_is_counted_logged_and_holds_the_previous_contact_for
     assert (qp.relaxed_count, qp.fallback_count, controller.qp_fallback_count) == (1, 1, 1)
     assert "torque QP failed" in caplog.text
     np.testing.assert_array_equal(qp.last_force, forces)  # held, not replaced
-    motors = [sim.model.actuator(j).id for j in MOTOR_JOINTS]
+    motors = [sim.model.actuator(j).id for j in G1_BIPED.motor_joints]
     torques = sim.data.ctrl[motors]
     assert np.all(np.isfinite(torques))
     assert np.all((qp.torque_limit[:, 0] <= torques) & (torques <= qp.torque_limit[:, 1]))

@@ -11,6 +11,7 @@ import pytest
 
 import robot_models
 from robot_models import g1_constants as g1_names, panda_constants as panda_names
+from robot_models.validation import check_range, is_number
 from sim_bridge import Simulation
 
 HOLD_SECONDS = 10.0
@@ -94,6 +95,30 @@ def test_panda_scene_has_grasp_settings_and_boxes():
 def test_unknown_robot_lists_known_names():
     with pytest.raises(robot_models.UnknownRobotError, match="g1, panda"):
         robot_models.load("atlas")
+    for lookup in (robot_models.sensors_of, robot_models.cameras_of):
+        with pytest.raises(robot_models.UnknownRobotError, match="g1, panda"):
+            lookup("atlas")
+
+
+def test_the_registry_names_each_robot_and_knows_its_cameras_without_building_it():
+    assert robot_models.ROBOT_NAMES == tuple(sorted((robot_models.G1, robot_models.PANDA)))
+    for name in robot_models.ROBOT_NAMES:
+        robot = robot_models.load(name, "")  # "" = the default scene, as None
+        assert robot.name == name
+        assert robot_models.cameras_of(name) == robot.cameras
+
+
+def test_check_range_takes_numbers_only_and_says_what_is_allowed():
+    check_range("x", np.float32(0.5), 0, 1)  # NumPy scalars are numbers
+    check_range("x", 1, 0, 1)
+    for bad in (-0.1, 1.5, math.nan, math.inf, True, "0.5", None, 10**400):
+        with pytest.raises(ValueError, match=r"^x must be a finite number in \[0, 1\] m, got "):
+            check_range("x", bad, 0, 1, unit="m")
+    with pytest.raises(ValueError, match=r"a finite number > 0, got 0"):
+        check_range("y", 0, 0, low_open=True)
+    with pytest.raises(KeyError, match=r"a finite number in \(0, 180\) deg"):
+        check_range("fovy", 180.0, 0, 180, low_open=True, high_open=True, unit="deg", error=KeyError)
+    assert is_number(np.int64(3)) and not is_number(np.bool_(True)) and not is_number(math.nan)
 
 
 def test_g1_course_scene_has_static_obstacles_and_unknown_scenes_are_refused():

@@ -25,7 +25,7 @@ def g1() -> robot_models.RobotSpec:
 @pytest.fixture
 def legs(g1):
     sim = Simulation(g1)
-    walker = WalkingController(sim.model)
+    walker = WalkingController(sim.model, sim.robot.biped)
     host = SkillHost(walker)
     battery = Battery()
     sim.set_controller(Slot.LOCOMOTION, Metered(host, BatteryMeter(battery)))

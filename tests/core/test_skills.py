@@ -19,7 +19,7 @@ def g1() -> robot_models.RobotSpec:
 @pytest.fixture
 def legs(g1):
     sim = Simulation(g1)
-    walker = WalkingController(sim.model)
+    walker = WalkingController(sim.model, sim.robot.biped)
     host = SkillHost(walker)
     sim.set_controller(Slot.LOCOMOTION, host)
     yield sim, walker, host

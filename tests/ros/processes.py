@@ -1,5 +1,5 @@
 """Test access to the project's process launcher (one implementation, in sim_client)."""
 
-from nodes.processes import ChildProcess as NodeProcess, running
+from sim_ros.processes import ChildProcess as NodeProcess, running
 
 __all__ = ["NodeProcess", "running"]

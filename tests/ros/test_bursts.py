@@ -15,8 +15,8 @@ from rclpy.action import ActionClient
 from rclpy.qos import QoSProfile
 
 from sim_client import RosSession
-from sim_client.session import WaitTimeout
 from sim_interfaces.action import MoveArm, Walk
+from sim_ros.session import WaitTimeout
 from tests.ros.actions import ready_client, result, send
 from tests.ros.processes import running
 

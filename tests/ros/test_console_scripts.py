@@ -9,7 +9,7 @@ import tomllib
 
 import pytest
 
-from nodes.processes import BIN
+from sim_ros.processes import BIN
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 SCRIPTS = sorted(tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"])

@@ -1,7 +1,7 @@
 """Fuzzing goals and parameters (hypothesis): every bad input is refused or ended with a code and a reason.
 
 - In-process, hundreds of goals per action through the validation the servers run at the goal
-  callback (``nodes.skill_protocol``): a goal passes or is refused with :class:`InvalidGoalError` and a
+  callback (``nodes.servers.protocol``): a goal passes or is refused with :class:`InvalidGoalError` and a
   message, never another exception.
 - Through ROS, against real servers: random goals (malformed and finite-but-wrong ones: off the table,
   unreachable, inside obstacles, absurd timeouts) are each rejected, or accepted and ended with a
@@ -25,7 +25,7 @@ from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import DescribeParameters, GetParameters, ListParameters, SetParameters
 
 import robot_models
-from nodes.skill_protocol import BINDINGS
+from nodes.servers.protocol import BINDINGS
 from sim_bridge.errors import InvalidGoalError
 from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, ResetPose, Walk
 from tests.ros.actions import ready_client, result, send

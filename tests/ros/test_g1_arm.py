@@ -11,8 +11,8 @@ from action_msgs.msg import GoalStatus
 from nav_msgs.msg import Odometry
 
 import robot_models
-from nodes.conversions import set_pose
 from sim_interfaces.action import MoveArm
+from sim_ros.conversions import set_pose
 from tests.ros.actions import ready_client, result, send
 from tests.ros.processes import running
 

@@ -12,9 +12,9 @@ from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 
 import robot_models
-from nodes.conversions import seconds_of, yaw_of
 from sim_interfaces.action import NavigateToPose, Walk
 from sim_interfaces.srv import Push, Reset
+from sim_ros.conversions import seconds_of, yaw_of
 from tests.ros.actions import ready_client, result, send, wait_feedback
 from tests.ros.processes import running
 

@@ -69,7 +69,7 @@ def test_a_goal_in_the_robots_own_frame_is_resolved_where_it_stands(client, navi
     """NavigateToPose in ``pelvis`` (any /tf frame): 0.8 m straight ahead of where the robot stands now."""
     from nav_msgs.msg import Odometry
 
-    from nodes.conversions import yaw_of
+    from sim_ros.conversions import yaw_of
 
     odom = client.record(Odometry, "/odom", keep=10)
     client.wait_for(lambda: odom.count > 0, 30.0, "/odom")

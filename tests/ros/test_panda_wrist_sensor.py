@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from geometry_msgs.msg import WrenchStamped
 
-from nodes.conversions import seconds_of
 from robot_models import panda_constants
 from sim_interfaces.action import PickPlace
 from sim_interfaces.srv import CalibrateHandSensors
+from sim_ros.conversions import seconds_of
 from tests.ros.actions import ready_client, result, send
 from tests.ros.processes import running
 

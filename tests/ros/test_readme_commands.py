@@ -31,9 +31,9 @@ from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import DescribeParameters, SetParameters
 
-from nodes.processes import BIN, ChildProcess
-from sim_client.scenario import schema
-from sim_client.scenario.sweep import parse_grid, points
+from sim_client.scenario.model import schema
+from sim_client.scenario.running.sweep import parse_grid, points
+from sim_ros.processes import BIN, ChildProcess
 from tests.ros.actions import ready_client, result, send, wait_feedback
 
 pytestmark = pytest.mark.slow

@@ -10,9 +10,9 @@ import pytest
 from action_msgs.msg import GoalStatus
 from action_msgs.srv import CancelGoal
 
-from nodes.processes import ChildProcess, child_processes
-from sim_client.session import WaitTimeout
 from sim_interfaces.action import MoveArm, Walk
+from sim_ros.processes import ChildProcess, child_processes
+from sim_ros.session import WaitTimeout
 from tests.ros.actions import ready_client, result, send, wait_feedback
 from tests.ros.test_arm_server import move_goal
 

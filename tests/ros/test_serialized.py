@@ -18,9 +18,10 @@ from rclpy.serialization import deserialize_message, serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import BatteryState, Imu, JointState
 
-import nodes.sim_sensors
+import nodes.sim.sensors
 import robot_models
-from nodes.serialized import (
+from nodes.sim.sensors import SensorStreams
+from nodes.sim.serialized import (
     BatteryStateTemplate,
     ClockTemplate,
     HandSensorsTemplate,
@@ -34,7 +35,6 @@ from nodes.serialized import (
     stamp_of,
     wrench_stamped_message,
 )
-from nodes.sim_sensors import SensorStreams
 from sim_bridge import Simulation, Slot
 from sim_bridge.battery import Battery
 from sim_bridge.locomotion import WalkingController
@@ -234,7 +234,7 @@ def _reference_foot_wrench(model: mujoco.MjModel, data: mujoco.MjData, geom: int
 def test_walking_the_feet_wrenches_equal_the_contact_by_contact_sum_and_the_templates_carry_the_readings():
     spec = robot_models.load("g1")
     sim = Simulation(spec)
-    walker = WalkingController(sim.model)
+    walker = WalkingController(sim.model, sim.robot.biped)
     sim.set_controller(Slot.LOCOMOTION, walker)
     walker.set_velocity_command(0.4, 0.05, 0.2)
     suite = SensorSuite(sim.model, spec.sensors)
@@ -316,7 +316,7 @@ def _publish(context: Context, name: str, sim: Simulation, battery: Battery, lis
 def test_sim_streams_publish_the_same_messages_through_templates_and_the_ordinary_path(monkeypatch):
     spec = robot_models.load("g1")
     sim = Simulation(spec)
-    walker = WalkingController(sim.model)
+    walker = WalkingController(sim.model, sim.robot.biped)
     sim.set_controller(Slot.LOCOMOTION, walker)
     walker.set_velocity_command(0.3, 0.0, 0.0)
     sim.step(200)  # walking: contacts, hand motion, a drained battery
@@ -335,7 +335,7 @@ def test_sim_streams_publish_the_same_messages_through_templates_and_the_ordinar
             raise TemplateError("refused by the test")
 
         for name in ("ImuTemplate", "WrenchStampedTemplate", "HandSensorsTemplate", "BatteryStateTemplate"):
-            monkeypatch.setattr(nodes.sim_sensors, name, refuse)
+            monkeypatch.setattr(nodes.sim.sensors, name, refuse)
         ordinary = _publish(context, "sim_ordinary", sim, battery, listener)
         assert len(refused) == 5, "every stream fell back: /imu, two feet, the hands, the battery"
         for topic in TOPICS:

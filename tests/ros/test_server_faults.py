@@ -13,10 +13,10 @@ import pytest
 from action_msgs.msg import GoalStatus
 from std_srvs.srv import Trigger
 
-from nodes.processes import ChildProcess
-from nodes.skill_server import SIM_SILENCE_S
-from sim_client.session import WaitTimeout
+from nodes.servers.server import SIM_SILENCE_S
 from sim_interfaces.action import Walk
+from sim_ros.processes import ChildProcess
+from sim_ros.session import WaitTimeout
 from tests.ros.actions import ready_client, result, send, wait_feedback
 
 pytestmark = pytest.mark.slow

@@ -16,7 +16,7 @@ import pytest
 from action_msgs.msg import GoalStatus
 from nav_msgs.msg import Odometry
 
-from nodes.skill_protocol import result_codes
+from nodes.servers.protocol import result_codes
 from sim_client import RosSession
 from sim_interfaces.action import MoveArm, Walk
 from tests.ros.actions import ready_client, result, send

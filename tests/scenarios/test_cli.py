@@ -9,7 +9,7 @@ import threading
 import pytest
 from rosgraph_msgs.msg import Clock
 
-from nodes.processes import BIN, running
+from sim_ros.processes import BIN, running
 
 
 def sim(*args: str, timeout: float = 90.0) -> subprocess.CompletedProcess:

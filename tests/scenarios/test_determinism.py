@@ -16,8 +16,9 @@ from typing import Any
 
 import pytest
 
-from sim_client.scenario import schema
-from sim_client.scenario.runner import RunOptions, run
+from sim_client.scenario.model import schema
+from sim_client.scenario.running.options import RunOptions
+from sim_client.scenario.running.runner import run
 
 TOLERANCE = 1e-6
 

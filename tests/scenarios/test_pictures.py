@@ -13,10 +13,12 @@ import numpy as np
 import pytest
 
 import robot_models
-from sim_client.scenario import goalview, overlay, plots, render, schema
-from sim_client.scenario.artifacts import Series
-from sim_client.scenario.goalview import GoalView
-from sim_client.scenario.runner import RunOptions, run
+from sim_client.scenario.model import schema
+from sim_client.scenario.model.series import Series
+from sim_client.scenario.outputs import goalview, overlay, plots, render
+from sim_client.scenario.outputs.goalview import GoalView
+from sim_client.scenario.running.options import RunOptions
+from sim_client.scenario.running.runner import run
 
 SIZE = (480, 360)
 
@@ -40,9 +42,17 @@ def navigate_goal(done: float | None = 9.0, status: str = "SUCCEEDED") -> GoalVi
                     (3.0, 0.0, 0.0), 0.0, ((0.1, "4.2 m left"), (3.0, "2.9 m left")))
 
 
+class NavigationDefaults:
+    """A run as the pictures read the navigation node's parameters: the /locomotion node's defaults."""
+
+    def parameter(self, node: str, name: str) -> float:
+        assert node == goalview.NAVIGATION_NODE
+        return {"robot_radius": 0.30, "obstacle_detection_threshold": 0.15}[name]
+
+
 def recorded(course: robot_models.RobotSpec, goal: GoalView) -> render.RecordedRun:
     odom = walking_odom()
-    planned = goalview.planned_paths(course, [goal], odom, goalview.navigation_inflation(course, []))
+    planned = goalview.planned_paths(course, [goal], odom, goalview.navigation_inflation(course, NavigationDefaults()))
     return render.RecordedRun("course_walk", "g1", "course", 0.0, 4.0, odom, ([], Series(np.zeros(0), np.zeros((0, 0)))),
                               {}, (goal,), planned)
 
@@ -117,7 +127,7 @@ def test_the_overlay_says_the_time_and_each_goals_state():
 def test_the_path_plot_draws_the_obstacles_and_the_planned_path_under_the_walked_path(course):
     goal = navigate_goal()
     odom = walking_odom()
-    clearance = goalview.navigation_inflation(course, [])
+    clearance = goalview.navigation_inflation(course, NavigationDefaults())
     assert clearance == pytest.approx(0.45)
     planned = goalview.planned_paths(course, [goal], odom, clearance)
     assert planned["nav"][0] == (0.0, 0.0) and planned["nav"][-1] == (3.0, 0.0) and len(planned["nav"]) > 2

@@ -10,9 +10,11 @@ import textwrap
 
 import pytest
 
-from nodes.processes import BIN
-from sim_client.scenario import artifacts, schema
-from sim_client.scenario.runner import RunOptions, run
+from sim_client.scenario.model import schema
+from sim_client.scenario.outputs import recording
+from sim_client.scenario.running.options import RunOptions
+from sim_client.scenario.running.runner import run
+from sim_ros.processes import BIN
 
 STAND = """\
 name: stand_short
@@ -59,7 +61,7 @@ def test_a_sim_only_scenario_runs_headless_with_a_json_report_and_an_mcap(tmp_pa
     measured = {e["name"]: e["measured"] for e in report["expectations"]}
     assert measured["elbow at the home angle"] == pytest.approx(-2.356, abs=0.02)
 
-    counts = artifacts.read_mcap_topics(pathlib.Path(report["artifacts"]["mcap"]))
+    counts = recording.read_mcap_topics(pathlib.Path(report["artifacts"]["mcap"]))
     for topic in ("/clock", "/joint_states", "/odom", "/objects", "/tf"):
         assert counts.get(topic, 0) > 0, f"{topic} missing from the MCAP: {counts}"
     # 2 s of sim time at the sim's default rates (100 Hz clock, 200 Hz joint states)
@@ -73,7 +75,7 @@ def test_a_run_with_the_camera_records_its_frames_and_a_contact_sheet(tmp_path):
     report = json.loads((result.folder / "report.json").read_text())
     sheet = pathlib.Path(report["artifacts"]["camera"])
     assert sheet.name == "camera.png" and sheet.stat().st_size > 10_000
-    counts = artifacts.read_mcap_topics(pathlib.Path(report["artifacts"]["mcap"]))
+    counts = recording.read_mcap_topics(pathlib.Path(report["artifacts"]["mcap"]))
     frames_due = report["sim_time_s"] * 10.0  # camera_rate 10 Hz of sim time
     assert counts.get("/head_camera/image_raw", 0) >= 0.9 * frames_due, counts
     assert counts.get("/head_camera/camera_info", 0) >= counts["/head_camera/image_raw"]

@@ -8,7 +8,8 @@ import textwrap
 import numpy as np
 import pytest
 
-from sim_client.scenario import schema
+import robot_models
+from sim_client.scenario.model import schema, steps
 
 SHIPPED = schema.all_files()
 
@@ -44,13 +45,13 @@ def test_every_shipped_scenario_validates(path):
     scenario = schema.load(path)
     assert scenario.name == path.stem
     assert scenario.expectations, "a scenario without expectations judges nothing"
-    assert scenario.robot in schema.ROBOT_NAMES
+    assert scenario.robot in robot_models.ROBOT_NAMES
 
 
 def test_a_good_file_loads_into_typed_values(tmp_path):
     scenario = schema.load(write(tmp_path, GOOD))
     assert scenario.robot == "panda" and scenario.keyframe == "home" and scenario.rtf == 0.0
-    assert isinstance(scenario.steps[0], schema.WaitStep) and scenario.steps[0].duration == 0.5
+    assert isinstance(scenario.steps[0], steps.WaitStep) and scenario.steps[0].duration == 0.5
     expectation = scenario.expectations[0]
     assert expectation.measure.kind == "object_position" and expectation.comparison.holds(0.025)
     assert not expectation.comparison.holds(0.04)
@@ -106,42 +107,105 @@ def test_errors_name_the_file_and_line_and_what_is_wrong(tmp_path, text, line, m
 
 
 def test_robot_facts_and_error_codes_come_from_their_sources_not_copies():
-    import robot_models
-    from sim_client.scenario import registry, robots
+    from sim_client.scenario.model import actions, robots
     from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, Walk
 
-    assert robots.ROBOT_NAMES == robot_models.ROBOT_NAMES
     for name in robot_models.ROBOT_NAMES:
         spec, facts = robot_models.load(name), robots.robot_facts(name)
         assert facts.keyframes == tuple(spec.keyframes) and facts.objects == tuple(spec.objects)
         assert facts.default_scene == spec.scene and facts.arms == tuple(spec.end_effector_sites)
-    assert registry.actions_of(robots.robot_facts("g1")) == ("walk", "navigate", "move_arm")
-    assert registry.actions_of(robots.robot_facts("panda")) == ("move_arm", "pick_place")
+    assert actions.actions_of(robots.robot_facts("g1")) == ("walk", "navigate", "move_arm")
+    assert actions.actions_of(robots.robot_facts("panda")) == ("move_arm", "pick_place")
     for action, action_type in (("walk", Walk), ("navigate", NavigateToPose), ("move_arm", MoveArm), ("pick_place", PickPlace)):
-        names = registry.ACTIONS[action].error_names
+        names = actions.ACTIONS[action].error_names
         assert names[0] == "SUCCESS" and "INVALID_GOAL" in names
         assert all(getattr(action_type.Result, n) == i for i, n in enumerate(names)), "error codes in value order"
-    assert "GOAL_IN_OBSTACLE" in registry.ACTIONS["navigate"].error_names
-    assert "PLACEMENT_FAILED" in registry.ACTIONS["pick_place"].error_names
+    assert "GOAL_IN_OBSTACLE" in actions.ACTIONS["navigate"].error_names
+    assert "PLACEMENT_FAILED" in actions.ACTIONS["pick_place"].error_names
 
 
-def test_every_step_kind_names_a_runner_method_and_every_kind_is_described():
-    from sim_client.scenario import registry
-    from sim_client.scenario.runner import ScenarioRun
+EVERY_STEP = """\
+name: every_step
+robot: g1
+steps:
+  - reset: {keyframe: stand}
+  - send_goal: {id: w, action: walk, goal: {distance: 1.0}, wait: false}
+  - wait: {duration: 0.5}
+  - wait: {until: {measure: {feedback: {goal: w, field: distance_walked}}, gte: 0.2}, timeout: 5}
+  - cancel: {goal: w}
+  - wait: {goal: w}
+  - set_param: {node: locomotion, name: walking_speed, value: 0.4}
+  - cmd_vel: {vx: 0.2, duration: 1.0}
+  - push: {force: [10, 0, 0], duration: 0.1}
+expect:
+  - name: walk canceled
+    outcome: {goal: w, status: CANCELED}
+"""
 
-    for kind in registry.STEPS.values():
-        assert callable(getattr(ScenarioRun, kind.run, None)), f"step {kind.name}: ScenarioRun has no method {kind.run}"
-        assert registry.step_kind(kind.type(line=1, mark=None)) is kind
-    for kind in registry.MEASURES.values():
+
+class StepRecorder:
+    """A run (``steps.StepRunner``) that notes what each step asks of it."""
+
+    def __init__(self) -> None:
+        self.calls: list[tuple] = []
+
+    def reset(self, keyframe):
+        self.calls.append(("reset", keyframe))
+
+    def wait_sim(self, duration):
+        self.calls.append(("wait_sim", duration))
+
+    def wait_until(self, predicate, timeout, what, line):
+        self.calls.append(("wait_until", predicate(), timeout, what))
+
+    def condition_holds(self, condition):
+        return condition.measure.kind == "feedback"
+
+    def goal_done(self, goal_id):
+        return goal_id == "w"
+
+    def cancel_goal(self, goal_id):
+        self.calls.append(("cancel_goal", goal_id))
+
+    def send_goal(self, step):
+        self.calls.append(("send_goal", step.id))
+
+    def set_param(self, step):
+        self.calls.append(("set_param", step.name, step.value))
+
+    def push(self, step):
+        self.calls.append(("push", step.force))
+
+    def drive(self, step):
+        self.calls.append(("drive", step.vx, step.duration))
+
+
+def test_every_step_kind_carries_the_function_that_runs_it_and_every_kind_is_described():
+    from sim_client.scenario.model import measures
+
+    scenario = schema.parse(EVERY_STEP)
+    assert {steps.step_kind(step).name for step in scenario.steps} == set(steps.STEPS)
+    run = StepRecorder()
+    for step in scenario.steps:
+        steps.step_kind(step).run(run, step)
+    assert run.calls == [
+        ("reset", "stand"), ("send_goal", "w"), ("wait_sim", 0.5),
+        ("wait_until", True, 5.0, "until feedback(goal=w, field=distance_walked, reduce=last) >= 0.2"),
+        ("cancel_goal", "w"), ("wait_until", True, 60.0, "for goal w to end"), ("set_param", "walking_speed", 0.4),
+        ("drive", 0.2, 1.0), ("push", (10.0, 0.0, 0.0)),
+    ]
+    for kind in steps.STEPS.values():
+        assert steps.step_kind(kind.type(line=1, mark=None)) is kind
+    for kind in measures.MEASURES.values():
         assert kind.about and callable(kind.evaluate), kind.name
     for path in SHIPPED:
         for step in schema.load(path).steps:
-            assert registry.describe_step(step)
+            assert steps.describe_step(step)
 
 
 def test_a_measure_evaluates_on_recorded_data_alone():
-    from sim_client.scenario import fields, registry
-    from sim_client.scenario.artifacts import Series
+    from sim_client.scenario.model import fields, measures
+    from sim_client.scenario.model.series import Series
 
     class Recorded:
         def mark_time(self, name, default):
@@ -156,14 +220,14 @@ def test_a_measure_evaluates_on_recorded_data_alone():
 
     recorded = Recorded()
     ctx = fields.Ctx("<test>")
-    measure = registry.parse_measure(ctx, {"base_displacement": {"to": "half"}}, 1)
+    measure = measures.parse_measure(ctx, {"base_displacement": {"to": "half"}}, 1)
     assert measure.evaluate(recorded) == pytest.approx(0.5)
-    assert registry.parse_measure(ctx, "base_height_min", 1).evaluate(recorded) == pytest.approx(0.6)
-    assert registry.parse_measure(ctx, "mean_speed", 1).evaluate(recorded) == pytest.approx(0.5)
-    yaw = registry.parse_measure(ctx, {"base_position": {"axis": "yaw", "at": "half"}}, 1)
+    assert measures.parse_measure(ctx, "base_height_min", 1).evaluate(recorded) == pytest.approx(0.6)
+    assert measures.parse_measure(ctx, "mean_speed", 1).evaluate(recorded) == pytest.approx(0.5)
+    yaw = measures.parse_measure(ctx, {"base_position": {"axis": "yaw", "at": "half"}}, 1)
     assert yaw.evaluate(recorded) == pytest.approx(0.1) and yaw.unit == "rad"
     with pytest.raises(KeyError, match="not reached"):
-        registry.parse_measure(ctx, {"duration": {"from": "later"}}, 1).evaluate(recorded)
+        measures.parse_measure(ctx, {"duration": {"from": "later"}}, 1).evaluate(recorded)
 
 
 def test_a_scenario_is_found_by_name_and_unknown_names_list_the_known_ones():
@@ -173,11 +237,12 @@ def test_a_scenario_is_found_by_name_and_unknown_names_list_the_known_ones():
 
 
 def test_every_registered_kind_is_documented_and_listed(capsys):
-    from sim_client.scenario import cli, registry
+    from sim_client.scenario import cli
+    from sim_client.scenario.model import actions, measures
 
     readme = (schema.SCENARIO_DIR / "README.md").read_text()
     assert cli.main(["kinds"]) == 0
     listed = capsys.readouterr().out
-    for name in (*registry.STEPS, *registry.MEASURES, *registry.ACTIONS):
+    for name in (*steps.STEPS, *measures.MEASURES, *actions.ACTIONS):
         assert name in readme, f"{name} is not in scenarios/README.md"
         assert f"  {name} " in listed, f"{name} is not listed by `scenario kinds`"

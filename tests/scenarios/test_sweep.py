@@ -8,8 +8,8 @@ import json
 
 import pytest
 
-from sim_client.scenario import schema
-from sim_client.scenario.sweep import SweepError, parse_grid, parse_values, points, run_sweep, set_path
+from sim_client.scenario.model import schema
+from sim_client.scenario.running.sweep import SweepError, parse_grid, parse_values, points, run_sweep, set_path
 
 
 def test_grid_values_are_yaml_lists_or_ranges():

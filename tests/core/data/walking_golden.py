@@ -35,6 +35,7 @@ import numpy as np
 
 import robot_models
 from robot_models import g1_constants as names
+from robot_models.biped import BipedDescription
 from sim_bridge import Simulation, Slot
 from sim_bridge.locomotion import GaitParameters, WalkingController
 
@@ -80,9 +81,10 @@ def disturbance_forces(ticks: int) -> np.ndarray:
     return rng.normal(0.0, DISTURBANCE_STD, (ticks // DISTURBANCE_EVERY + 1, 2))
 
 
-def new_walk(robot: robot_models.RobotSpec, factory: Callable[[mujoco.MjModel], WalkingController] = WalkingController) -> Walk:
+def new_walk(robot: robot_models.RobotSpec,
+             factory: Callable[[mujoco.MjModel, BipedDescription | None], WalkingController] = WalkingController) -> Walk:
     sim = Simulation(robot)
-    controller = factory(sim.model)
+    controller = factory(sim.model, robot.biped)
     sim.set_controller(Slot.LOCOMOTION, controller)
     ticks = round(DURATION / sim.control_timestep)
     motors = np.array([sim.model.actuator(j).id for j in MOTOR_JOINTS])

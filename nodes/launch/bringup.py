@@ -1,0 +1,138 @@
+"""All-in-one bringup: the sim node and every server that exists for the robot, as a launch file would.
+
+``bringup --robot g1|panda [--scene course] [--rtf X] [--paused]``. Each node runs in its own
+process (so the physics thread never waits for a server's Python), with the same names and
+interfaces as when started one by one. Ctrl-C (or SIGTERM) stops them all.
+
+A node that dies (a non-zero exit) is reported (which, its exit code, its last lines of output) and started again, as
+a launch file's ``respawn`` does, after ``--respawn-delay`` seconds and at most ``--respawn-limit``
+times per node; the others keep running (the servers serve a restarted /sim, which starts from its
+keyframe). With ``--no-respawn`` a dying node stops the others and bringup exits with an error.
+A client waiting on a goal of a server that died gets its result from bringup all the same
+(:mod:`nodes.launch.result_keeper`): ABORTED, ``SIM_FAULT``, naming the dead server.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+from typing import Any
+
+import robot_models
+from nodes.launch.result_keeper import ResultKeeper
+from sim_ros.processes import ChildProcess
+
+
+def parse_args(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog="bringup", description=__doc__.splitlines()[0])
+    parser.add_argument("--robot", choices=robot_models.ROBOT_NAMES, default=robot_models.G1)
+    parser.add_argument("--scene", default="", help="scene variant (g1: open, course); default: the robot's own")
+    parser.add_argument("--rtf", type=float, default=1.0, help="real-time factor; 0 = as fast as possible")
+    parser.add_argument("--paused", action="store_true", help="start with the physics paused")
+    parser.add_argument("--no-respawn", dest="respawn", action="store_false",
+                        help="a node that dies stops the others (default: it is started again)")
+    parser.add_argument("--respawn-limit", type=int, default=5, help="restarts allowed per node (default 5)")
+    parser.add_argument("--respawn-delay", type=float, default=1.0, help="wall seconds before a restart (default 1)")
+    options = parser.parse_args(argv)
+    if options.respawn_limit < 0 or not 0.0 <= options.respawn_delay <= 60.0:
+        parser.error("--respawn-limit must be >= 0 and --respawn-delay in [0, 60] s")
+    return options
+
+
+def commands_for(options: argparse.Namespace, ros_args: list[str]) -> list[list[str]]:
+    """The executables to run, with their arguments."""
+    sim = ["sim_node", "--ros-args", "-p", f"robot:={options.robot}", "-p", f"real_time_factor:={float(options.rtf)}",
+           "-p", f"start_paused:={str(bool(options.paused)).lower()}"]
+    if options.scene:
+        sim += ["-p", f"scene:={options.scene}"]
+    servers = [["arm_server", "--ros-args", "-p", f"robot:={options.robot}"]]
+    if robot_models.load(options.robot).feet_sites:
+        servers.append(["locomotion_server", "--ros-args", "-p", f"robot:={options.robot}"])
+    sensors = robot_models.sensors_of(options.robot)
+    if sensors.battery is not None:
+        servers.append(["power_node", "--ros-args", "-p", f"robot:={options.robot}"])
+    if sensors.wrists:
+        servers.append(["hand_sensors", "--ros-args", "-p", f"robot:={options.robot}"])
+    cameras = robot_models.cameras_of(options.robot)
+    if cameras:
+        servers.append(["camera_node", "--ros-args", "-p", f"robot:={options.robot}"])
+    if any(camera.tilt_joint is not None for camera in cameras):
+        servers.append(["head_node", "--ros-args", "-p", f"robot:={options.robot}"])
+    extra = ros_args[1:] if ros_args else []
+    return [command + extra for command in [sim, *servers]]
+
+
+def served_actions(commands: list[list[str]]) -> dict[str, list[tuple[str, Any]]]:
+    """The actions each of these executables serves: executable -> [(action name, action type)]."""
+    from nodes.servers import arm as arm_server, locomotion as locomotion_server
+    from nodes.servers.protocol import BINDINGS
+
+    by_executable = {"arm_server": arm_server.ACTIONS, "locomotion_server": locomotion_server.ACTIONS}
+    return {command[0]: [(name, BINDINGS[skill].action_type) for skill, name in by_executable[command[0]].items()]
+            for command in commands if command[0] in by_executable}
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    split = argv.index("--ros-args") if "--ros-args" in argv else len(argv)
+    options = parse_args(argv[:split])
+    try:
+        robot_models.load(options.robot, options.scene or None)
+    except robot_models.RobotModelError as error:
+        print(f"bringup: {error}", file=sys.stderr)
+        return 2
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    children: list[ChildProcess] = []
+    restarts: dict[int, int] = {}
+    commands = commands_for(options, argv[split:])
+    keeper = ResultKeeper(served_actions(commands))  # first: discovered by the time any client sends a goal
+    try:
+        for command in commands:
+            children.append(ChildProcess(command, own_group=False, relay_output=True))
+        print(f"bringup: running {', '.join(c.args[0] for c in children)} for {options.robot}; Ctrl-C stops them",
+              flush=True)
+        while not stop.wait(0.2):
+            for index, child in enumerate(children):
+                if child.alive():
+                    continue
+                code = child.process.returncode
+                if code == 0:  # it was asked to stop (Ctrl-C reaches the whole process group): so is everything
+                    print(f"bringup: {child.args[0]} exited cleanly; stopping the others", flush=True)
+                    return 0
+                last = "\n".join(f"    {line}" for line in list(child.last_lines)[-10:])
+                print(f"bringup: {child.args[0]} died with exit code {code}; its last output:\n{last}",
+                      file=sys.stderr, flush=True)
+                try:
+                    answered = keeper.server_died(child.args[0], code)
+                except Exception as error:  # noqa: BLE001  a keeper that cannot answer must not end bringup
+                    print(f"bringup: could not answer the clients of {child.args[0]}'s goals: {error}", file=sys.stderr)
+                    answered = 0
+                if answered:
+                    print(f"bringup: answered {answered} request(s) of clients waiting on {child.args[0]}'s goals "
+                          "(ABORTED, SIM_FAULT)", file=sys.stderr, flush=True)
+                if not options.respawn or restarts.get(index, 0) >= options.respawn_limit:
+                    why = "respawn is off" if not options.respawn else f"it was restarted {options.respawn_limit} times"
+                    print(f"bringup: {why}; stopping the others", file=sys.stderr, flush=True)
+                    return 1
+                if stop.wait(options.respawn_delay):
+                    return 0
+                restarts[index] = restarts.get(index, 0) + 1
+                note = " (it starts from its keyframe)" if child.args[0] == "sim_node" else ""
+                print(f"bringup: restarting {child.args[0]}{note}, restart {restarts[index]} of {options.respawn_limit}",
+                      file=sys.stderr, flush=True)
+                children[index] = ChildProcess(commands[index], own_group=False, relay_output=True)
+        return 0
+    finally:
+        for child in children:  # signal all first, then wait: they shut down in parallel
+            child.send_signal(signal.SIGINT)
+        for child in reversed(children):
+            child.stop(interrupt=False)
+        keeper.close()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

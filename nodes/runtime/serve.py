@@ -1,0 +1,88 @@
+"""The ``main`` of every node but ``/sim``: find the robot (a parameter, or ask /sim), build the node, spin it."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+
+import rclpy
+from rclpy.executors import Executor, ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+import robot_models
+from nodes.runtime.executor import ServerExecutor, drop_qos_event_handlers
+from nodes.runtime.parameters import ParameterSpec, StartupError, declare, guard_parameter_services
+from nodes.runtime.sim_link import robot_of_sim, sim_time_overrides
+from nodes.runtime.startup import StopRequest, bounded_cleanup, fail, help_requested, init_ros, program_name
+
+NodeFactory = Callable[[str, list[Parameter]], Node]  # (robot, parameter overrides) -> the node
+BeforeExit = Callable[[Node, Executor], None]  # runs while the context is still up, before the node is destroyed
+
+
+def spin_server(node_factory: NodeFactory, node_name: str, args: list[str] | None,
+                help_page: Callable[[str], str] | None = None, before_exit: BeforeExit | None = None) -> int:
+    """``main`` of a server node: find the robot (parameter or /sim), build the node, spin it.
+
+    ``-h``/``--help`` prints ``help_page(program)`` and returns at once, without ROS. A bad start-up
+    parameter or params file ends it with one line and code 2. Ctrl-C (or SIGTERM) ends it with
+    code 0 at any point, while it starts up as while it serves; ``before_exit`` then gets the node and
+    its executor while ROS still runs (an action server ends its goals and sends their results).
+    """
+    argv = sys.argv if args is None else args
+    program = program_name(argv)
+    if help_requested(argv):
+        sys.stdout.write(help_page(program) if help_page is not None else
+                         f"usage: {program} [-h] [--ros-args ...]\n\nThe /{node_name} node; "
+                         f"`ros2 param describe /{node_name} NAME` shows its parameters.\n")
+        return 0
+    try:
+        init_ros(argv, own_signals=True)
+    except StartupError as error:
+        return fail(program, error)
+    try:
+        return _serve(node_factory, node_name, argv, before_exit)
+    except StartupError as error:
+        return fail(program, error)
+    except KeyboardInterrupt:  # interrupted while starting up (asking /sim, building the node)
+        return 0
+    finally:
+        rclpy.try_shutdown()
+
+
+def _serve(node_factory: NodeFactory, node_name: str, argv: list[str], before_exit: BeforeExit | None) -> int:
+    overrides = sim_time_overrides(argv)
+    probe = Node(f"{node_name}_setup", parameter_overrides=overrides)
+    try:
+        declare(probe, (ParameterSpec("robot", "", "robot of the running /sim (empty = ask /sim)", read_only=True),))
+        robot = str(probe.get_parameter("robot").value) or robot_of_sim(probe)
+    except RuntimeError as error:
+        probe.get_logger().fatal(str(error))
+        rclpy.try_shutdown()
+        return 2
+    finally:
+        probe.destroy_node()
+    try:
+        node = node_factory(robot, overrides)
+    except robot_models.RobotModelError as error:
+        raise StartupError(str(error)) from None
+    drop_qos_event_handlers(node)
+    guard_parameter_services(node)
+    executor = ServerExecutor(num_threads=4)
+    executor.add_node(node)
+    stop = StopRequest.install()  # from here a signal is a flag, never an exception inside rclpy
+    # Spun in short waits, so SIGINT/SIGTERM is seen within 0.2 s while the ROS context stays up: the
+    # running goals can still be ended and their results sent.
+    try:
+        while not stop.requested and rclpy.ok():
+            executor.spin_once(timeout_sec=0.2)
+    except ExternalShutdownException:
+        pass
+    finally:
+        with bounded_cleanup():
+            if before_exit is not None and rclpy.ok():
+                before_exit(node, executor)
+            node.destroy_node()
+            executor.shutdown()
+            rclpy.try_shutdown()
+    return 0

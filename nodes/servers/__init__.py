@@ -1,0 +1,1 @@
+"""The action servers (MoveArm, PickPlace, Walk, NavigateToPose, reset pose) and their goal protocol with /sim."""

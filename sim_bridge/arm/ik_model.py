@@ -1,0 +1,91 @@
+"""The private model an arm's IK runs on: colliding meshes, the other DoFs unlimited, the arm's collision pairs."""
+
+from __future__ import annotations
+
+import copy
+
+import mujoco
+import numpy as np
+
+from robot_models import ArmScene, RobotSpec
+from sim_bridge.arm.description import ArmInfo
+from sim_bridge.errors import SimError
+
+
+def _subtree_bodies(model: mujoco.MjModel, root: int) -> list[int]:
+    bodies = [root]
+    for body in range(root + 1, model.nbody):
+        parent = int(model.body_parentid[body])
+        if parent in bodies:
+            bodies.append(body)
+    return bodies
+
+
+def _arm_and_obstacle_geoms(model: mujoco.MjModel, scene: ArmScene, info: ArmInfo) -> tuple[list[int], list[int]]:
+    """The arm link geoms checked for collisions (from ``scene.collision_from_joint`` on) and the obstacle geoms."""
+    obstacle_geoms = [model.geom(name).id for name in scene.obstacle_geoms]
+    for body_name in scene.obstacle_bodies:
+        body_id = model.body(body_name).id
+        obstacle_geoms += [g for g in range(model.ngeom) if model.geom_bodyid[g] == body_id]
+    first = info.joints[min(scene.collision_from_joint, len(info.joints) - 1)]
+    bodies = set(_subtree_bodies(model, int(model.jnt_bodyid[model.joint(first).id])))
+    arm_geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] in bodies]
+    return arm_geoms, obstacle_geoms
+
+
+def build_collision_model(robot: RobotSpec, scene: ArmScene, infos: dict[str, ArmInfo]) -> mujoco.MjModel:
+    """The robot's model, recompiled with the arm and obstacle geoms colliding if they are visual-only.
+
+    Compiling them as colliding geoms (rather than flipping ``geom_contype`` in a compiled model)
+    gives their meshes the convex hulls MuJoCo's distance queries walk: without one, every query
+    visits all of a mesh's vertices.
+
+    Raises:
+        SimError: the recompiled model does not have the layout of the robot's model.
+    """
+    model = robot.model
+    if not scene.make_visuals_collide:
+        return model
+    colliding = set()
+    for info in infos.values():
+        arm_geoms, obstacle_geoms = _arm_and_obstacle_geoms(model, scene, info)
+        colliding.update(arm_geoms + obstacle_geoms)
+    spec = robot.mjspec.copy()
+    for geom_id, geom in enumerate(spec.geoms):
+        if geom_id in colliding:
+            geom.contype, geom.conaffinity = 1, 1
+    compiled = spec.compile()
+    same_layout = (
+        (compiled.nq, compiled.nv, compiled.ngeom, compiled.nbody) == (model.nq, model.nv, model.ngeom, model.nbody)
+        and np.array_equal(compiled.geom_bodyid, model.geom_bodyid) and np.array_equal(compiled.jnt_qposadr, model.jnt_qposadr)
+    )
+    if not same_layout:
+        raise SimError(f"the collision model of {robot.name!r} does not have the layout of its model")
+    return compiled
+
+
+def build_ik_model(
+    base: mujoco.MjModel, scene: ArmScene, info: ArmInfo,
+) -> tuple[mujoco.MjModel, list[tuple[list[int], list[int]]]]:
+    """A private copy of the model for one arm's IK, and that arm's collision pairs.
+
+    Only the arm's joints keep their position limits in the copy: every other DoF is frozen by an
+    equality constraint, and a frozen DoF measured a hair outside its range would make mink's
+    ConfigurationLimit contradict the freezing constraint.
+
+    Args:
+        base: the robot's model, with the arm and obstacle geoms colliding (see :func:`build_collision_model`).
+        scene: the robot's arm facts.
+        info: the arm.
+
+    Returns:
+        The IK model and mink collision pairs (arm link geoms, obstacle geoms).
+    """
+    model = copy.deepcopy(base)
+    arm_joint_ids = {model.joint(j).id for j in info.joints}
+    for joint_id in range(model.njnt):
+        if joint_id not in arm_joint_ids:
+            model.jnt_limited[joint_id] = 0
+    arm_geoms, obstacle_geoms = _arm_and_obstacle_geoms(model, scene, info)
+    pairs = [(arm_geoms, obstacle_geoms)] if arm_geoms and obstacle_geoms else []
+    return model, pairs

@@ -1,0 +1,212 @@
+"""``recording.mcap``: every topic of a run, as rosbag2 writes it, so Foxglove and rosbag2 read it.
+
+Serialized CDR with ROS 2 message definitions (profile ``ros2``, schema encoding ``ros2msg``);
+action feedback and status included. The definitions are read from the installed interfaces.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pathlib
+import re
+import struct
+import sys
+import threading
+from typing import Any
+
+PRIMITIVES = {"bool", "byte", "char", "float32", "float64", "int8", "uint8", "int16", "uint16", "int32", "uint32",
+              "int64", "uint64", "string", "wstring"}
+# Interfaces installed without their .msg text (only .idl/.json): the definitions, verbatim.
+_KNOWN_DEFINITIONS = {"unique_identifier_msgs/msg/UUID": "uint8[16] uuid\n"}
+_SEPARATOR = "=" * 80
+
+
+# ----- message definitions ------------------------------------------------------------------
+def _share_dirs() -> list[pathlib.Path]:
+    return [pathlib.Path(sys.prefix) / "share"]
+
+
+def _read_interface(full_name: str) -> str:
+    """Text of ``pkg/msg/Type`` or of a part of an action (``pkg/action/Walk_Feedback``)."""
+    if full_name in _KNOWN_DEFINITIONS:
+        return _KNOWN_DEFINITIONS[full_name]
+    package, kind, name = full_name.split("/")
+    for share in _share_dirs():
+        if kind == "action":
+            base, _, part = name.rpartition("_")
+            action_file = share / package / "action" / f"{base}.action"
+            if action_file.exists():
+                goal, result, feedback = [*re.split(r"^---\s*$", action_file.read_text(), flags=re.MULTILINE), "", ""][:3]
+                if part == "Goal":
+                    return goal
+                if part == "Result":
+                    return result
+                if part == "Feedback":
+                    return feedback
+                if part == "FeedbackMessage":
+                    return f"unique_identifier_msgs/UUID goal_id\n{package}/action/{base}_Feedback feedback\n"
+        path = share / package / kind / f"{name}.msg"
+        if path.exists():
+            return path.read_text()
+    raise KeyError(f"no definition found for {full_name}")
+
+
+def _dependencies(package: str, text: str) -> list[str]:
+    found = []
+    for line in text.splitlines():
+        line = line.split("#", 1)[0].strip()
+        if not line:
+            continue
+        field_type = line.split()[0]
+        base = re.sub(r"\[.*\]$", "", field_type)
+        base = re.sub(r"<=\d+$", "", base)
+        if base in PRIMITIVES:
+            continue
+        if base == "Header":
+            found.append("std_msgs/msg/Header")
+        elif "/" in base:
+            parts = base.split("/")
+            found.append(base if len(parts) == 3 else f"{parts[0]}/msg/{parts[1]}")
+        else:
+            found.append(f"{package}/msg/{base}")
+    return found
+
+
+def message_definition(full_name: str) -> str:
+    """The ``ros2msg`` definition of a type with every nested type appended, as rosbag2 stores it."""
+    main = _read_interface(full_name)
+    seen: list[str] = []
+    queue = _dependencies(full_name.split("/")[0], main)
+    while queue:
+        dep = queue.pop(0)
+        if dep in seen:
+            continue
+        seen.append(dep)
+        queue.extend(_dependencies(dep.split("/")[0], _read_interface(dep)))
+    parts = [main.rstrip("\n")]
+    for dep in seen:
+        parts.append(f"{_SEPARATOR}\nMSG: {dep}\n{_read_interface(dep).rstrip()}")
+    return "\n".join(parts) + "\n"
+
+
+def import_type(full_name: str) -> Any:
+    """Python class of ``pkg/msg/Type`` or ``pkg/action/Walk_FeedbackMessage``."""
+    package, kind, name = full_name.split("/")
+    module = importlib.import_module(f"{package}.{kind}")
+    if kind == "action" and not hasattr(module, name):
+        base, _, part = name.rpartition("_")
+        return getattr(getattr(module, base).Impl, part)
+    return getattr(module, name)
+
+
+# ----- MCAP recording -----------------------------------------------------------------------
+class McapRecorder:
+    """Subscribes to every topic it discovers (raw CDR) and writes them into an MCAP file.
+
+    Call :meth:`discover` now and then (new topics appear as nodes start); :meth:`close` at the
+    end. Log times are the session's sim time [ns] at reception.
+    """
+
+    def __init__(self, session: Any, path: pathlib.Path, exclude: tuple[str, ...] = ()) -> None:
+        from mcap.writer import CompressionType, Writer
+
+        self.session = session
+        self.path = path
+        self._stream = open(path, "wb")  # noqa: SIM115 - closed in close()
+        self._writer = Writer(self._stream, compression=CompressionType.ZSTD)
+        self._writer.start(profile="ros2", library="sim scenario runner")
+        self._lock = threading.Lock()
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[str, int] = {}
+        self._subscriptions: list[Any] = []
+        self._sequence = 0
+        self._exclude = exclude
+        self.counts: dict[str, int] = {}
+        self.latest_stamp_s: dict[str, float] = {}  # topic -> stamp [s] of the newest message, for stamped types
+        self._stamped: set[str] = set()
+        self.skipped: dict[str, str] = {}
+        self._closed = False
+
+    def discover(self) -> None:
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+        from sim_ros.session import quiet_events
+
+        node = self.session.node
+        for topic, types in node.get_topic_names_and_types():
+            if topic in self._channels or topic in self.skipped or topic in self._exclude or not types:
+                continue
+            type_name = types[0]
+            try:
+                msg_type = import_type(type_name)
+                definition = message_definition(type_name)
+            except (ImportError, AttributeError, KeyError, ValueError) as error:
+                self.skipped[topic] = f"{type_name}: {error}"
+                continue
+            publishers = node.get_publishers_info_by_topic(topic)
+            qos = QoSProfile(depth=1000)
+            if publishers and all(p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for p in publishers):
+                qos.durability = DurabilityPolicy.TRANSIENT_LOCAL
+            if any(p.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for p in publishers):
+                qos.reliability = ReliabilityPolicy.BEST_EFFORT
+            with self._lock:
+                if type_name not in self._schemas:
+                    self._schemas[type_name] = self._writer.register_schema(type_name, "ros2msg", definition.encode())
+                self._channels[topic] = self._writer.register_channel(topic, "cdr", self._schemas[type_name])
+                self.counts[topic] = 0
+                if _starts_with_stamp(msg_type):
+                    self._stamped.add(topic)
+            self._subscriptions.append(node.create_subscription(
+                msg_type, topic, lambda data, topic=topic: self._on_message(topic, data), qos, raw=True,
+                event_callbacks=quiet_events()))
+
+    def _on_message(self, topic: str, data: bytes) -> None:
+        now = self.session.node.get_clock().now().nanoseconds
+        with self._lock:
+            if self._closed:
+                return
+            self._sequence += 1
+            self._writer.add_message(self._channels[topic], log_time=now, data=data, publish_time=now,
+                                     sequence=self._sequence)
+            self.counts[topic] += 1
+            if topic in self._stamped:
+                self.latest_stamp_s[topic] = _cdr_leading_stamp_s(data)
+
+    def close(self) -> None:
+        for subscription in self._subscriptions:
+            self.session.node.destroy_subscription(subscription)
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            self._writer.finish()
+            self._stream.close()
+
+
+def _starts_with_stamp(msg_type: Any) -> bool:
+    """Whether a message's first field is a time stamp (a ``std_msgs/Header`` or a ``builtin_interfaces/Time``)."""
+    fields = list(msg_type.get_fields_and_field_types().values())
+    return bool(fields) and fields[0] in ("std_msgs/Header", "builtin_interfaces/Time")
+
+
+def _cdr_leading_stamp_s(data: bytes) -> float:
+    """The leading stamp [s] of a serialized message that starts with one (sec int32, nanosec uint32).
+
+    Bytes 0-3 are the CDR encapsulation header; byte 1 says the byte order (1: little-endian).
+    """
+    order = "<" if data[1] == 1 else ">"
+    sec, nanosec = struct.unpack_from(order + "iI", data, 4)
+    return sec + nanosec * 1e-9
+
+
+def read_mcap_topics(path: pathlib.Path) -> dict[str, int]:
+    """Message count per topic of an MCAP file (decodes every message to check it reads)."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    counts: dict[str, int] = {}
+    with open(path, "rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        for _schema, channel, _message, _decoded in reader.iter_decoded_messages():
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+    return counts

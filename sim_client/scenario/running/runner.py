@@ -1,0 +1,107 @@
+"""Run a scenario from start to end: bring up its nodes, carry it out, write what it leaves in its run folder.
+
+A run folder holds ``report.json`` (expectations with measured values and verdicts, goals, wall and
+sim time) and, when asked, ``recording.mcap``, ``video.mp4``, the plots and ``camera.png``
+(:mod:`sim_client.scenario.outputs`).
+"""
+
+from __future__ import annotations
+
+import datetime
+import pathlib
+import sys
+from typing import TextIO
+
+from sim_client.scenario.model.schema import Scenario
+from sim_client.scenario.running.options import RunOptions
+from sim_client.scenario.running.report import RunResult, write_json
+from sim_client.scenario.running.scenario_run import ScenarioRun
+from sim_ros.processes import running
+from sim_ros.session import RosSession
+
+DEFAULT_OPTIONS = RunOptions()
+
+
+def run_folder(base: pathlib.Path, name: str) -> pathlib.Path:
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    folder = base / f"{name}-{stamp}"
+    n = 1
+    while folder.exists():
+        n += 1
+        folder = base / f"{name}-{stamp}-{n}"
+    folder.mkdir(parents=True)
+    return folder
+
+
+def run(scenario: Scenario, options: RunOptions = DEFAULT_OPTIONS, stream: TextIO = sys.stdout) -> RunResult:
+    """Bring up ``bringup --robot R`` (paused for lock-stepping), run the scenario, write artifacts."""
+    folder = run_folder(options.out, scenario.name)
+    rtf = scenario.rtf if options.rtf is None else options.rtf
+    args = ["bringup", "--robot", scenario.robot, "--scene", scenario.scene, "--rtf", f"{rtf:g}", "--paused"]
+    with RosSession("scenario_runner", use_sim_time=True) as session:
+        if options.launch:
+            with running(args, log_dir=folder) as process:
+                run_ = ScenarioRun(scenario, session, options, folder, stream)
+                result = run_.execute()
+                if not process.alive():
+                    result.failures.append(f"bringup exited early with code {process.process.returncode}; see {process.log_path}")
+                    result.passed = False
+                    result.report["passed"] = False
+                    result.report["failures"] = result.failures
+                _write_artifacts(run_, result, stream)
+        else:
+            run_ = ScenarioRun(scenario, session, options, folder, stream)
+            result = run_.execute()
+            _write_artifacts(run_, result, stream)
+    return result
+
+
+def _write_artifacts(run_: ScenarioRun, result: RunResult, stream: TextIO) -> None:
+    folder = result.folder
+    paths: dict[str, str | list[str]] = {}  # artifact kind -> path; "plots" -> a list of paths
+    if run_.mcap is not None:
+        run_.mcap.close()
+        paths["mcap"] = str(run_.mcap.path)
+        result.report["mcap_topics"] = dict(sorted(run_.mcap.counts.items()))
+    start, end = run_.marks.get("start", 0.0), run_.marks.get("end", 0.0)
+    if run_.options.plots:
+        from sim_client.scenario.outputs import plots
+
+        try:
+            plot_paths = [str(plot) for plot in plots.make_plots(run_, folder)]
+            if plot_paths:
+                paths["plots"] = plot_paths
+        except Exception as error:  # noqa: BLE001 - an artifact failing must not hide the verdicts
+            result.report.setdefault("artifact_errors", []).append(f"plots: {type(error).__name__}: {error}")
+    if run_.camera_images is not None and end > start:
+        try:
+            from sim_client.scenario.outputs import camera_sheet
+
+            sheet = camera_sheet.make_sheet(run_.camera_images.messages(), start, end, folder / "camera.png",
+                                            f"{run_.scenario.name}: /{run_.camera_name}/image_raw")
+            if sheet is not None:
+                paths["camera"] = str(sheet)
+        except Exception as error:  # noqa: BLE001 - an artifact failing must not hide the verdicts
+            result.report.setdefault("artifact_errors", []).append(f"camera: {type(error).__name__}: {error}")
+    if run_.options.video and end > start:
+        try:
+            from sim_client.scenario.outputs import render
+
+            render.render_video(render.recorded_run(run_), folder / "video.mp4")
+            paths["video"] = str(folder / "video.mp4")
+        except Exception as error:  # noqa: BLE001 - an artifact failing must not hide the verdicts
+            result.report.setdefault("artifact_errors", []).append(f"video: {type(error).__name__}: {error}")
+    paths["report"] = str(folder / "report.json")
+    result.report["artifacts"] = paths
+    write_json(folder / "report.json", result.report)
+    if not run_.options.quiet:
+        verdict = "PASSED" if result.passed else "FAILED"
+        ratio = f"{result.wall_time / result.sim_time:.2f}" if result.sim_time > 0 else "n/a"
+        stream.write(f"\n{result.scenario}: {verdict}  ({sum(v.passed for v in result.verdicts)}/{len(result.verdicts)} "
+                     f"expectations; start-up {result.startup_time:.1f} s, then wall {result.wall_time:.1f} s for sim "
+                     f"{result.sim_time:.1f} s: wall/sim {ratio})\n")
+        for kind, written in paths.items():
+            stream.write(f"  {kind}: {written}\n")
+        for problem in result.report.get("artifact_errors", []):
+            stream.write(f"  artifact error: {problem}\n")
+        stream.flush()

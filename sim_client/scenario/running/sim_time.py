@@ -1,0 +1,120 @@
+"""Sim time as a run drives it: lock-stepped through ``/sim/step``, or followed on ``/clock`` when the sim runs free.
+
+Lock-stepped, the paused sim advances only when asked, in whole control steps; ``rtf`` 0 asks as fast
+as the machine allows, ``rtf`` > 0 paces the requests to that real-time factor. Either way the same
+scenario gives the same numbers. Free-running (nodes already running, ``rtf`` > 0), the sim runs at its
+own pace and the run follows ``/clock``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from collections.abc import Callable
+from typing import Any
+
+from rosgraph_msgs.msg import Clock
+
+from sim_client.scenario.model.series import stamp_s
+from sim_interfaces.srv import Step as StepSrv
+from sim_ros.session import RESPONSE_QOS, RosSession, WaitTimeout
+
+STARTUP_WALL_S = 90.0
+SERVICE_WALL_S = 30.0
+GOAL_END_WALL_S = 5.0  # wall seconds to wait for the results of goals /sim reports ended
+
+
+class StepFailure(RuntimeError):
+    """A step could not be carried out (timeout, server missing, /sim refused); the run fails."""
+
+
+def call_service(session: RosSession, client: Any, request: Any, what: str) -> Any:
+    """Wait for the service, call it and wait for its response (``SERVICE_WALL_S`` wall seconds each)."""
+    session.wait_for(client.service_is_ready, SERVICE_WALL_S, f"service {what}")
+    return session.wait_future(client.call_async(request), SERVICE_WALL_S, f"response of {what}")
+
+
+class SimTime:
+    """The sim time of a run [s], and the means to let it pass.
+
+    Args:
+        session: the run's ROS session (its clock is sim time).
+        lock_step: step the paused sim through ``/sim/step`` (else follow ``/clock``).
+        rtf: real-time factor to pace lock-stepping to (0: as fast as possible); the free-running sim's.
+        goals_done: how many of the run's goals have ended, to wait for the results of goals /sim
+            reports ended in a step.
+    """
+
+    def __init__(self, session: RosSession, lock_step: bool, rtf: float, goals_done: Callable[[], int]) -> None:
+        self.session = session
+        self.lock_step = lock_step
+        self.rtf = rtf
+        self.clock = session.record(Clock, "/clock", keep=10)
+        self._step = session.node.create_client(StepSrv, "/sim/step", qos_profile=RESPONSE_QOS)
+        self._goals_done = goals_done
+        self.control_dt = 0.0  # [s] of sim time per /sim/step step, measured by calibrate()
+        self._sim_now = 0.0
+        self._pace_anchor: tuple[float, float] | None = None  # (wall [s], sim [s]) that pacing counts from
+
+    def now(self) -> float:
+        """The latest sim time seen on /clock or in a /sim answer [s]."""
+        latest = self.clock.latest
+        if latest is not None:
+            self._sim_now = max(self._sim_now, stamp_s(latest.clock))
+        return self._sim_now
+
+    def reached(self, sim_time: float) -> None:
+        """Note a sim time [s] /sim answered with (a reset's)."""
+        self._sim_now = max(self._sim_now, sim_time)
+
+    def calibrate(self) -> None:
+        """Lock-stepped: measure the sim time of one step. Free-running: wait for /clock."""
+        if self.lock_step:
+            t0 = self.step(1)
+            self.control_dt = self.step(1) - t0
+            if self.control_dt <= 0:
+                raise StepFailure("/sim/step did not advance sim time; is the sim paused by someone else?")
+        else:
+            self.session.wait_for(lambda: self.clock.count > 0, STARTUP_WALL_S, "/clock")
+
+    def step(self, steps: int) -> float:
+        """Step the paused sim ``steps`` control steps; returns the sim time it reached [s]."""
+        done_before = self._goals_done()
+        response = call_service(self.session, self._step, StepSrv.Request(steps=steps), "/sim/step")
+        if not response.success:
+            raise StepFailure(f"/sim/step refused: {response.message}")
+        self._sim_now = max(self._sim_now, response.sim_time)
+        if response.goals_ended:
+            # Goals ended in these steps: take their results before stepping on, so a goal's end is
+            # seen at the same sim time in every run. (Bounded: a goal of another client ends too.)
+            def arrived() -> bool:
+                return self._goals_done() >= done_before + response.goals_ended
+
+            with contextlib.suppress(WaitTimeout):
+                self.session.wait_for(arrived, GOAL_END_WALL_S, "the results of goals that ended")
+        return float(response.sim_time)
+
+    def steps_for(self, dt: float) -> int:
+        """Whole control steps in about ``dt`` [s] of sim time, at least one."""
+        return max(1, round(dt / self.control_dt))
+
+    def advance(self, dt: float) -> None:
+        """Let about ``dt`` [s] of sim time pass."""
+        target = self.now() + dt
+        if self.lock_step:
+            self._pace(self.step(self.steps_for(dt)))
+        else:
+            self.session.wait_for(lambda: self.now() >= target - 1e-9, max(10.0, 20.0 * dt / self.rtf), "sim time to advance")
+
+    def _pace(self, sim_now: float) -> None:
+        """At ``rtf`` > 0, wait until ``sim_now`` is due on the wall clock (the run's rhythm, not a wait for an event)."""
+        if self.rtf <= 0.0:
+            return
+        wall = time.monotonic()
+        if self._pace_anchor is None:
+            self._pace_anchor = (wall, sim_now)
+            return
+        wall0, sim0 = self._pace_anchor
+        delay = wall0 + (sim_now - sim0) / self.rtf - wall
+        if delay > 0.0:
+            time.sleep(delay)

@@ -1,0 +1,66 @@
+"""The ROS names and QoS profiles the project's nodes share, each defined once.
+
+``/sim`` publishes the streams every other node reads; the ``/sim/...`` topics below are the
+simulator's side of a device node or an action server (only the project's own nodes use them). Both
+ends of a topic take its name and its QoS from here, so they cannot drift apart. A node's own
+interfaces (its services, actions and private ``~/`` topics) are named where the node is.
+"""
+
+from __future__ import annotations
+
+from rclpy.qos import DurabilityPolicy, QoSProfile
+
+SIM_NODE = "sim"  # the simulator's node name (/sim); the servers ask it for its robot parameter
+
+# ----- streams of /sim --------------------------------------------------------------------------
+CLOCK_TOPIC = "/clock"
+JOINT_STATES_TOPIC = "/joint_states"
+ODOM_TOPIC = "/odom"
+TF_TOPIC = "/tf"
+TF_STATIC_TOPIC = "/tf_static"
+OBJECTS_TOPIC = "/objects"
+MAP_TOPIC = "/map"
+IMU_TOPIC = "/imu"
+CMD_VEL_TOPIC = "/cmd_vel"
+CMD_VEL_STAMPED_TOPIC = "/cmd_vel_stamped"
+
+
+def wrench_topic(sensor: str) -> str:
+    """A force/torque sensor's wrench: a foot's from ``/sim``, a wrist's (calibrated) from ``/hand_sensors``."""
+    return f"/{sensor}/wrench"
+
+
+def image_topic(camera: str) -> str:
+    return f"/{camera}/image_raw"
+
+
+def camera_info_topic(camera: str) -> str:
+    return f"/{camera}/camera_info"
+
+
+# ----- /sim's side of the servers and device nodes ----------------------------------------------
+SKILL_COMMAND_TOPIC = "/sim/skill_command"  # action servers -> /sim: START, CANCEL, UPDATE of a goal
+SKILL_STATE_TOPIC = "/sim/skill_state"  # /sim -> action servers: each goal's status, feedback and result
+HAND_SENSORS_TOPIC = "/sim/hand_sensors"  # /sim -> /hand_sensors: raw wrist force/torque, hand speed and contact
+BATTERY_TOPIC = "/sim/battery"  # /sim -> /power: the battery drained in the control step
+BATTERY_CONFIG_TOPIC = "/sim/battery_config"  # /power -> /sim: the battery model's settings (latched)
+
+
+def camera_settings_topic(camera: str) -> str:
+    """/camera -> /sim: the camera's settings (latched)."""
+    return f"/sim/{camera}/settings"
+
+
+def camera_tilt_topic(camera: str) -> str:
+    """/head -> /sim: the tilt of a camera's mount [rad] (latched)."""
+    return f"/sim/{camera}/tilt"
+
+
+# ----- QoS profiles -----------------------------------------------------------------------------
+# The latest value, kept for a reader that comes later (a restarted /sim takes its devices' settings).
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+MAX_STREAM_RATE_HZ = 500.0  # the fastest /clock and /joint_states rate /sim allows [Hz of sim time]
+STREAM_HISTORY_S = 10.0  # /clock and /joint_states a reliable writer keeps for a stalled reader [s of sim time]
+STREAM_HISTORY_DEPTH = int(STREAM_HISTORY_S * MAX_STREAM_RATE_HZ)  # 5000 samples: Fast DDS's default max_samples
+STREAMS = QoSProfile(depth=STREAM_HISTORY_DEPTH)  # /clock and /joint_states
+SKILL_QOS = QoSProfile(depth=100)  # the goal protocol's topics, both ways
