@@ -62,6 +62,10 @@ def _serve(node_factory: NodeFactory, node_name: str, argv: list[str], before_ex
         return 2
     finally:
         probe.destroy_node()
+    # From here a signal is a flag, never an exception inside rclpy. Installed before the node is built:
+    # a node says it serves from its constructor, and a Ctrl-C right after that (as soon as a client saw
+    # it serving) must not land as a KeyboardInterrupt between the constructor and the spin loop.
+    stop = StopRequest.install()
     try:
         node = node_factory(robot, overrides)
     except robot_models.RobotModelError as error:
@@ -70,7 +74,6 @@ def _serve(node_factory: NodeFactory, node_name: str, argv: list[str], before_ex
     guard_parameter_services(node)
     executor = ServerExecutor(num_threads=4)
     executor.add_node(node)
-    stop = StopRequest.install()  # from here a signal is a flag, never an exception inside rclpy
     # Spun in short waits, so SIGINT/SIGTERM is seen within 0.2 s while the ROS context stays up: the
     # running goals can still be ended and their results sent.
     try:

@@ -86,8 +86,8 @@ class StopRequest:
     rclpy's own handlers shut the ROS context down from the signal (a wait set being built then
     raised: exit 1) and chain to Python's, whose KeyboardInterrupt lands anywhere, once inside the
     clean-up (exit -2). A KeyboardInterrupt can also land inside rclpy's executor while it holds a
-    lock. Install it once the node is built; the spin loop reads the flag between short waits, and
-    a second signal during the clean-up only sets it again.
+    lock. Install it once the robot is known, before the node is built; the spin loop reads the flag
+    between short waits, and a second signal during the clean-up only sets it again.
     """
 
     def __init__(self) -> None:

@@ -90,9 +90,15 @@ def _write_artifacts(run_: ScenarioRun, result: RunResult, stream: TextIO) -> No
             render.render_video(render.recorded_run(run_), folder / "video.mp4")
             paths["video"] = str(folder / "video.mp4")
         except Exception as error:  # noqa: BLE001 - an artifact failing must not hide the verdicts
+            (folder / "video.mp4").unlink(missing_ok=True)  # never leave a broken file that looks like a video
             result.report.setdefault("artifact_errors", []).append(f"video: {type(error).__name__}: {error}")
     paths["report"] = str(folder / "report.json")
     result.report["artifacts"] = paths
+    problems = result.report.get("artifact_errors", [])
+    if problems:  # an artifact that was asked for and not made fails the run, saying which and why
+        result.failures.extend(f"asked-for artifact not made: {problem}" for problem in problems)
+        result.passed = False
+        result.report.update(passed=False, failures=result.failures)
     write_json(folder / "report.json", result.report)
     if not run_.options.quiet:
         verdict = "PASSED" if result.passed else "FAILED"
