@@ -1,9 +1,11 @@
-"""A battery drained by the simulated actuators: integrated in the control step, so it is deterministic.
+"""A battery drained by the simulated actuators: integrated where the physics runs, so it is deterministic.
 
 Electrical power = idle draw + sum over actuators of |tau * qdot| / drive efficiency (a motor
-draws power for negative work too; no regeneration). :class:`BatteryMeter` is an in-loop controller
-that integrates it at every control step from the actuator forces and velocities of the physics,
-whatever rate anyone reads it at; it writes no command.
+draws power for negative work too; no regeneration). :class:`BatteryMeter` integrates it over the sim
+time since its last sample, from the actuator forces and velocities of the physics: at every control
+step while a controller of its slot runs (walking), and at the end of each stretch of batched physics
+steps otherwise (standing, the power is the idle draw plus ~0 work), whatever rate anyone reads it at.
+It writes no command, so it never makes the simulation step control step by control step.
 """
 
 from __future__ import annotations
@@ -117,30 +119,37 @@ class Battery:
 
 
 class BatteryMeter:
-    """In-loop controller that drains a battery by the actuators' mechanical power at every control step.
+    """Drains a battery by the actuators' mechanical power over the sim time since its last sample.
 
-    Always active (the energy is integrated over every control step: deterministic, independent of
-    who reads it); it commands nothing. Power is taken as sum |actuator_force * actuator_velocity|.
+    Power is taken as sum |actuator_force * actuator_velocity| at the sample, held over the time since the
+    previous one (the whole span is counted, however the calls split it: the energy is deterministic for a
+    given stepping). It commands nothing.
     """
 
     def __init__(self, battery: Battery) -> None:
         self.battery = battery
-
-    @property
-    def active(self) -> bool:
-        return True
+        self._sampled_at = 0.0  # sim time of the last sample [s]
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         self.battery.reset()
+        self._sampled_at = float(data.time)
 
-    def update(self, model: mujoco.MjModel, data: mujoco.MjData, control_dt: float) -> None:
-        power = float(np.abs(data.actuator_force * data.actuator_velocity).sum())
-        self.battery.drain(power, control_dt)
+    def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Drain for the sim time since the last sample at the power of the physics now."""
+        now = float(data.time)
+        elapsed = now - self._sampled_at
+        self._sampled_at = now
+        if elapsed > 0.0:
+            power = float(np.abs(data.actuator_force * data.actuator_velocity).sum())
+            self.battery.drain(power, elapsed)
 
 
 class Metered:
-    """A controller slot's occupant with a battery meter in front: the meter runs every control step, ``inner``
-    when it is active. Lets a meter share a slot (the simulation keeps one controller per slot)."""
+    """A controller slot's occupant with a battery meter in front (the simulation keeps one controller per slot).
+
+    Active when ``inner`` is: while it runs, the meter is sampled at every control step before it; otherwise
+    the simulation steps in batches and samples the meter at the end of each (:meth:`sample`).
+    """
 
     def __init__(self, inner: Controller, meter: BatteryMeter) -> None:
         self.inner = inner
@@ -148,7 +157,7 @@ class Metered:
 
     @property
     def active(self) -> bool:
-        return True
+        return self.inner.active
 
     def reset(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         self.meter.reset(model, data)
@@ -159,7 +168,10 @@ class Metered:
         if release is not None:
             release(model, data)
 
+    def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Bring the meter up to the current sim time (the simulation calls it after each stretch of stepping)."""
+        self.meter.sample(model, data)
+
     def update(self, model: mujoco.MjModel, data: mujoco.MjData, control_dt: float) -> None:
-        self.meter.update(model, data, control_dt)
-        if self.inner.active:
-            self.inner.update(model, data, control_dt)
+        self.meter.sample(model, data)
+        self.inner.update(model, data, control_dt)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
 
 import mujoco
 import numpy as np
@@ -50,6 +51,19 @@ class _TiltMount:
     actuator_id: int
 
 
+@runtime_checkable
+class Sampled(Protocol):
+    """A slot's occupant that observes the physics between its updates (e.g. a battery meter).
+
+    Its ``sample`` is called at the end of every :meth:`Simulation.step_physics` call, so the
+    simulation can step in batches while its controller is idle and the occupant still sees all of it.
+    """
+
+    def sample(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Account for the physics up to the current sim time."""
+        ...
+
+
 def _as_slice(indices: np.ndarray) -> slice | np.ndarray:
     """A slice when the indices are consecutive (indexing then gives a view, cheaper than gathering)."""
     if len(indices) and np.array_equal(indices, np.arange(indices[0], indices[0] + len(indices))):
@@ -78,6 +92,7 @@ class Simulation:
             raise ValueError(f"control decimation must be a whole number >= 1, got {robot.control_decimation}")
         self.servo = JointServo(self.model, robot.actuated_joints)
         self._controllers: dict[Slot, Controller] = {Slot.JOINT_SERVO: self.servo}
+        self._sampled: tuple[Sampled, ...] = ()  # the occupants sampled after each step_physics call
         self._qpos_adr = _as_slice(np.array([self.model.joint(j).qposadr[0] for j in robot.actuated_joints]))
         self._dof_adr = _as_slice(np.array([self.model.joint(j).dofadr[0] for j in robot.actuated_joints]))
         self._actuator_ids = _as_slice(np.array([self.model.actuator(j).id for j in robot.actuated_joints]))
@@ -114,6 +129,7 @@ class Simulation:
             controller.reset(self.model, self.data)
             self._controllers[slot] = controller
         self._controllers = dict(sorted(self._controllers.items()))
+        self._sampled = tuple(c for c in self._controllers.values() if isinstance(c, Sampled))
 
     def controller(self, slot: Slot) -> Controller | None:
         return self._controllers.get(slot)
@@ -145,7 +161,8 @@ class Simulation:
 
         The control grid is kept whatever ``physics_steps`` is: controllers run when the number
         of physics steps since the last control update reaches the decimation. A push
-        (:meth:`push`) acts for exactly its physics steps, wherever the calls split them.
+        (:meth:`push`) acts for exactly its physics steps, wherever the calls split them. The
+        occupants that observe the physics (:class:`Sampled`) are sampled once at the end.
 
         Raises:
             SimulationFaultError: the physics diverged; call :meth:`reset`.
@@ -162,6 +179,8 @@ class Simulation:
             self._pushes = [push for push in self._pushes if push.steps_left > 0]
         if remaining > 0:
             self._step_span(remaining)
+        for occupant in self._sampled:
+            occupant.sample(self.model, self.data)
 
     def _step_span(self, physics_steps: int) -> None:
         remaining = int(physics_steps)

@@ -72,7 +72,8 @@ class InLoopPlugins:
         hosts: dict[str, SkillHost] = {}
         context = SkillContext(sim)
         pack = sim.robot.sensors.battery
-        # The battery is drained in the control step by a meter in the legs' slot (every step, deterministic).
+        # The battery is drained where the physics runs by a meter in the legs' slot: every control step while the legs
+        # are driven, at the end of each batch of physics steps while they stand (deterministic).
         self.battery = Battery(BatteryConfig.of(pack)) if pack is not None and sim.robot.feet_sites else None
         context.battery = self.battery
         if sim.robot.feet_sites:

@@ -4,7 +4,7 @@ Each stream rides along the sim node's publication stops (like ``/odom``): it is
 first stop at or after it falls due, stamped with that sim time, and only while someone subscribes
 (a stream faster than the stops, set by ``clock_rate`` and ``joint_state_rate``, is published at every
 stop). The readings come from :mod:`sim_bridge.sensors`, each computed once per stop and only for a
-stream that is due and subscribed; the battery is drained in the control step
+stream that is due and subscribed; the battery is drained where the physics runs
 (:class:`sim_bridge.battery.BatteryMeter`) and only reported here. Like /joint_states, every stream is
 serialized once (:mod:`nodes.sim.serialized`) and only its numbers are written at each publish; a template
 that fails its self-check falls back to building the same message the ordinary way.

@@ -137,3 +137,22 @@ def test_reset_pose_preempts_a_walk_and_refuses_a_fallen_robot(g1, legs):
 @pytest.mark.parametrize("name", robot_models.ROBOT_NAMES)
 def test_the_sensor_layout_is_known_without_building_the_model(name):
     assert robot_models.sensors_of(name) == robot_models.load(name).sensors
+
+
+def test_standing_the_meter_lets_the_physics_batch_and_counts_every_step_however_split(g1):
+    consumed = []
+    for split in (2, 5, 25):  # every control step; /sim's stops at 100 Hz; its longest stretch (50 ms)
+        sim = Simulation(g1)
+        battery = Battery()
+        metered = Metered(SkillHost(WalkingController(sim.model, sim.robot.biped)), BatteryMeter(battery))
+        sim.set_controller(Slot.LOCOMOTION, metered)
+        assert not metered.active, "standing, the slot is idle: the physics runs in batched mj_step calls"
+        for _ in range(999 // split):
+            sim.step_physics(split)
+        sim.step_physics(1000 - split * (999 // split))
+        assert sim.time == pytest.approx(2.0)
+        consumed.append(battery.consumed_j)
+    assert consumed[0] == pytest.approx(BatteryConfig().idle_power_w * 2.0, rel=0.02), "2 s of idle draw (and the settling)"
+    # Standing, the power is held over a stretch: a longer stretch misses more of the settling after the keyframe
+    # (the only work there is while standing).
+    assert consumed[1] == pytest.approx(consumed[0], rel=1e-4) and consumed[2] == pytest.approx(consumed[0], rel=2e-3)
