@@ -1,5 +1,5 @@
 """``scenario list``, ``scenario kinds``, ``scenario check [FILE...]`` and
-``scenario run NAME|FILE [--rtf X] [--record] [--video] [--plots] [--out DIR]`` and
+``scenario run NAME|FILE... [--rtf X] [--record] [--video] [--plots] [--out DIR]`` and
 ``scenario sweep NAME|FILE --grid KEY=VALUES ... [--seeds 0,1] [--workers N] [--address RAY]``."""
 
 from __future__ import annotations
@@ -81,8 +81,8 @@ def main(argv: list[str] | None = None) -> int:
     sub.add_parser("kinds", help="list the steps, measures and actions a scenario file may use")
     check = sub.add_parser("check", help="validate scenario files")
     check.add_argument("files", nargs="*")
-    run = sub.add_parser("run", help="run a scenario by name or file")
-    run.add_argument("scenario", help="name in scenarios/ or a .yaml path")
+    run = sub.add_parser("run", help="run scenarios by name or file (consecutive ones of one robot and scene share a bring-up)")
+    run.add_argument("scenarios", nargs="+", metavar="scenario", help="name in scenarios/ or a .yaml path")
     run.add_argument("--rtf", type=float, default=None,
                      help="real-time factor; 0 = lock-stepped as fast as possible (default: the file's)")
     run.add_argument("--record", action="store_true", help="write an MCAP of every topic")
@@ -127,23 +127,28 @@ def main(argv: list[str] | None = None) -> int:
     if options.command == "sweep":
         return _sweep(options)
     try:
-        scenario = schema.load(schema.find(options.scenario))
+        scenarios = [schema.load(schema.find(name)) for name in options.scenarios]
     except schema.ScenarioError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     from sim_client.scenario.running.options import RunOptions
-    from sim_client.scenario.running.runner import run as run_scenario
+    from sim_client.scenario.running.runner import run_all
 
     run_options = RunOptions(rtf=options.rtf, record=options.record or options.all, video=options.video or options.all,
                              plots=options.plots or options.all, camera=options.camera, out=options.out,
                              launch=not options.attach)
     try:
-        result = run_scenario(scenario, run_options)
+        results, bringups = run_all(scenarios, run_options)
     except KeyboardInterrupt:
         print("\ninterrupted", file=sys.stderr)
         return 130
-    return 0 if result.passed else 1
-
+    if len(results) > 1:
+        passed = sum(result.passed for result in results)
+        print(f"\n{passed}/{len(results)} scenarios passed, on {bringups} bring-up{'s' if bringups != 1 else ''}")
+        for result in results:
+            print(f"  {'PASSED' if result.passed else 'FAILED':<8} {result.scenario:<28} start-up {result.startup_time:5.1f} s, "
+                  f"run {result.wall_time:5.1f} s  ->  {result.folder}")
+    return 0 if all(result.passed for result in results) else 1
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -1,7 +1,8 @@
 """Same scenario, same numbers: lock-stepped runs with the action servers in the loop are repeatable.
 
 Each scenario runs twice, each time with its own freshly started nodes, as fast as possible (and one
-paced at real-time factor 2: the same numbers at any pace). Every number of the two
+paced at real-time factor 2: the same numbers at any pace); and a short one runs twice on one
+bring-up after a run that changed parameters and left a goal running, as on fresh nodes. Every number of the two
 reports (the goals' results and last feedback, the sim times at which they were sent, the measured
 values of the expectations) must agree to 1e-6. Not compared: the sim time at which the runner *saw*
 a goal end, which is quantized by its stepping (the goal's own end, in its result, is compared).
@@ -12,11 +13,13 @@ from __future__ import annotations
 import io
 import math
 import pathlib
+import textwrap
 from typing import Any
 
 import pytest
 
 from sim_client.scenario.model import schema
+from sim_client.scenario.running.bringups import Bringups
 from sim_client.scenario.running.options import RunOptions
 from sim_client.scenario.running.runner import run
 
@@ -66,3 +69,79 @@ def test_a_scenario_run_twice_gives_the_same_numbers(tmp_path: pathlib.Path, nam
     differ = {key: (first[key], second[key]) for key in first
               if not (math.isnan(first[key]) and math.isnan(second[key])) and abs(first[key] - second[key]) > TOLERANCE}
     assert not differ, f"{name} differs between two runs: {differ}"
+
+
+# A short walk at the default pace (walking_speed), judged on /odom (its publication grid) and the parameter.
+WALK_AT_DEFAULT_PACE = """\
+name: walk_at_default_pace
+robot: g1
+steps:
+  - send_goal: {id: walk, action: walk, goal: {distance: 0.6}, timeout: 20}
+  - wait: {duration: 0.3}
+expect:
+  - name: the walk succeeds
+    outcome: {goal: walk, status: SUCCEEDED}
+  - name: walked 0.6 m
+    measure: {base_displacement: {from: walk.sent, to: walk.done}}
+    near: 0.6
+    tol: 0.05
+  - name: at the default pace
+    measure: {mean_speed: {from: walk.sent, to: walk.done}}
+    gt: 0.0
+  - name: walking_speed at its default
+    measure: {parameter: {node: locomotion, name: walking_speed}}
+    near: 0.3
+    tol: 0.000001
+"""
+
+# What a previous run leaves behind: a faster pace, another /odom grid, the robot moved, a goal still running.
+LEAVE_A_MESS = """\
+name: leave_a_mess
+robot: g1
+steps:
+  - set_param: {node: locomotion, name: walking_speed, value: 0.5}
+  - set_param: {node: sim, name: odom_rate, value: 47.0}
+  - send_goal: {id: walk, action: walk, goal: {distance: 3.0}, wait: false, timeout: 20}
+  - wait: {duration: 1.3}
+expect:
+  - name: the walk is under way
+    measure: {feedback: {goal: walk, field: distance_walked}}
+    gt: 0.05
+"""
+
+
+def _report_without_wall_times(report: dict[str, Any]) -> dict[str, Any]:
+    """A report without what may differ between identical runs: wall times and stamps, artifact paths, and the
+    sim time at which the runner saw a goal end (quantized by its stepping; the goal's own end is in its result)."""
+    kept = {key: value for key, value in report.items()
+            if key not in ("started", "startup_wall_s", "wall_time_s", "wall_per_sim", "artifacts", "warnings")}
+    kept["marks"] = {name: t for name, t in report["marks"].items() if not name.endswith(".done")}
+    kept["goals"] = {goal_id: {k: v for k, v in goal.items() if k != "done_at"} for goal_id, goal in report["goals"].items()}
+    return kept
+
+
+@pytest.mark.slow
+def test_runs_on_one_bringup_give_the_report_of_a_run_on_fresh_nodes(tmp_path: pathlib.Path) -> None:
+    def scenario(text: str, name: str) -> schema.Scenario:
+        path = tmp_path / f"{name}.yaml"
+        path.write_text(textwrap.dedent(text))
+        return schema.load(path)
+
+    walk, mess = scenario(WALK_AT_DEFAULT_PACE, "walk_at_default_pace"), scenario(LEAVE_A_MESS, "leave_a_mess")
+    options = RunOptions(out=tmp_path / "runs", quiet=True)
+    fresh: Any = run(walk, options, stream=io.StringIO())
+    with Bringups(io.StringIO(), quiet=True) as bringups:
+        shared: list[Any] = [run(s, options, io.StringIO(), bringups) for s in (mess, walk, walk)]
+        assert bringups.started == 1, "consecutive runs of one robot and scene share one bring-up"
+    assert all(result.passed for result in (fresh, *shared)), [r.report for r in (fresh, *shared) if not r.passed]
+    assert shared[0].report["parameters"][0]["accepted"] and shared[0].report["parameters"][1]["accepted"]
+    reports = [fresh.report, shared[1].report, shared[2].report]
+    assert reports[0]["started_at_sim_s"] == reports[1]["started_at_sim_s"] == reports[2]["started_at_sim_s"]
+    numbers = [_outcome_numbers(report) for report in reports]
+    assert len(numbers[0]) >= 5, numbers[0]
+    for other, label in ((numbers[1], "the first run on a reused bring-up"), (numbers[2], "the second one")):
+        assert other.keys() == numbers[0].keys()
+        differ = {key: (numbers[0][key], other[key]) for key in other if abs(numbers[0][key] - other[key]) > TOLERANCE}
+        assert not differ, f"{label} differs from the run on fresh nodes: {differ}"
+    whole = [_report_without_wall_times(report) for report in reports]
+    assert whole[1] == whole[0] and whole[2] == whole[0]

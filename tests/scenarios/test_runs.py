@@ -12,6 +12,7 @@ import pytest
 
 from sim_client.scenario.model import schema
 from sim_client.scenario.outputs import recording
+from sim_client.scenario.running.bringups import Bringups
 from sim_client.scenario.running.options import RunOptions
 from sim_client.scenario.running.runner import run
 from sim_ros.processes import BIN
@@ -44,12 +45,20 @@ def scenario_file(tmp_path: pathlib.Path, text: str, name: str = "case") -> path
     return path
 
 
-def run_quietly(path: pathlib.Path, out: pathlib.Path, **options) -> object:
-    return run(schema.load(path), RunOptions(out=out, quiet=True, **options), stream=io.StringIO())
+def run_quietly(path: pathlib.Path, out: pathlib.Path, bringups: Bringups | None = None, **options) -> object:
+    return run(schema.load(path), RunOptions(out=out, quiet=True, **options), stream=io.StringIO(), bringups=bringups)
 
 
-def test_a_sim_only_scenario_runs_headless_with_a_json_report_and_an_mcap(tmp_path):
-    result = run_quietly(schema.find("reset_and_stand_panda"), tmp_path, record=True)
+@pytest.fixture(scope="module")
+def bringups():
+    """The runs of this file in one bring-up while they have the same robot and scene (reset between runs, as
+    ``scenario run A B C`` does; tests/scenarios/test_determinism.py shows the reports are those of fresh nodes)."""
+    with Bringups(io.StringIO(), quiet=True) as shared:
+        yield shared
+
+
+def test_a_sim_only_scenario_runs_headless_with_a_json_report_and_an_mcap(tmp_path, bringups):
+    result = run_quietly(schema.find("reset_and_stand_panda"), tmp_path, bringups, record=True)
     assert result.passed, result.report
     report = json.loads((result.folder / "report.json").read_text())
     assert report["passed"] is True and report["robot"] == "panda" and report["mode"] == "lock-step"
@@ -69,8 +78,8 @@ def test_a_sim_only_scenario_runs_headless_with_a_json_report_and_an_mcap(tmp_pa
     assert "/scene_camera/image_raw" not in counts, "a run not asked for the camera leaves it unwatched (unrendered)"
 
 
-def test_a_run_with_the_camera_records_its_frames_and_a_contact_sheet(tmp_path):
-    result = run_quietly(schema.find("head_camera_tilt"), tmp_path, record=True, camera=True)
+def test_a_run_with_the_camera_records_its_frames_and_a_contact_sheet(tmp_path, bringups):
+    result = run_quietly(schema.find("head_camera_tilt"), tmp_path, bringups, record=True, camera=True)
     assert result.passed, result.report
     report = json.loads((result.folder / "report.json").read_text())
     sheet = pathlib.Path(report["artifacts"]["camera"])
@@ -84,20 +93,24 @@ def test_a_run_with_the_camera_records_its_frames_and_a_contact_sheet(tmp_path):
 def test_a_failing_expectation_fails_the_run_and_is_named(tmp_path):
     text = STAND.replace("near: 0.76\n    tol: 0.08", "near: 1.50\n    tol: 0.01")
     path = scenario_file(tmp_path, text, "fails")
-    completed = subprocess.run(
-        [str(BIN / "scenario"), "run", str(path), "--out", str(tmp_path / "runs")],
+    completed = subprocess.run(  # and a passing one after it, on the same bring-up (a failed expectation is no error)
+        [str(BIN / "scenario"), "run", str(path), str(scenario_file(tmp_path, STAND, "passes")), "--out", str(tmp_path / "runs")],
         capture_output=True, text=True, timeout=180,
     )
     assert completed.returncode == 1, completed.stdout + completed.stderr
     assert "FAIL  pelvis height: measured 0.76" in completed.stdout
     assert "PASS  never fell" in completed.stdout
     assert "stand_short: FAILED" in completed.stdout
+    assert "stand_short: PASSED" in completed.stdout and "reusing the bring-up of g1/open" in completed.stdout
+    assert "1/2 scenarios passed, on 1 bring-up" in completed.stdout
 
 
-def test_the_same_scenario_twice_gives_the_same_measured_values(tmp_path):
+def test_the_same_scenario_twice_gives_the_same_measured_values(tmp_path, bringups):
     path = scenario_file(tmp_path, STAND, "twice")
-    first = run_quietly(path, tmp_path / "a")
-    second = run_quietly(path, tmp_path / "b")
+    started = bringups.started
+    first = run_quietly(path, tmp_path / "a", bringups)
+    second = run_quietly(path, tmp_path / "b", bringups)
+    assert bringups.started <= started + 1, "the second run reuses the bring-up of the first"
     assert first.passed and second.passed
     a = {v.name: v.measured for v in first.verdicts}
     b = {v.name: v.measured for v in second.verdicts}
@@ -114,14 +127,15 @@ def test_an_unknown_scenario_name_is_a_usage_error():
 
 # ----- every shipped scenario -------------------------------------------------------------------
 def _params():
-    for path in schema.all_files():
-        scenario = schema.load(path)
+    """Every shipped scenario, those of one robot and scene one after the other (they share a bring-up)."""
+    loaded = [(path, schema.load(path)) for path in schema.all_files()]
+    for path, scenario in sorted(loaded, key=lambda item: (item[1].robot, item[1].scene, item[0].stem)):
         marks = [] if "fast" in scenario.tags else [pytest.mark.slow]
         yield pytest.param(path, id=path.stem, marks=marks)
 
 
 @pytest.mark.parametrize("path", list(_params()))
-def test_every_shipped_scenario_passes(tmp_path, path):
-    result = run_quietly(path, tmp_path)
+def test_every_shipped_scenario_passes(tmp_path, bringups, path):
+    result = run_quietly(path, tmp_path, bringups)
     failed = [v.line_text() for v in result.verdicts if not v.passed] + result.failures
     assert result.passed, "\n".join(failed)

@@ -10,13 +10,15 @@ from __future__ import annotations
 import datetime
 import pathlib
 import sys
+import time
+from collections.abc import Sequence
 from typing import TextIO
 
 from sim_client.scenario.model.schema import Scenario
+from sim_client.scenario.running.bringups import Bringups
 from sim_client.scenario.running.options import RunOptions
 from sim_client.scenario.running.report import RunResult, write_json
 from sim_client.scenario.running.scenario_run import ScenarioRun
-from sim_ros.processes import running
 from sim_ros.session import RosSession
 
 DEFAULT_OPTIONS = RunOptions()
@@ -33,27 +35,59 @@ def run_folder(base: pathlib.Path, name: str) -> pathlib.Path:
     return folder
 
 
-def run(scenario: Scenario, options: RunOptions = DEFAULT_OPTIONS, stream: TextIO = sys.stdout) -> RunResult:
-    """Bring up ``bringup --robot R`` (paused for lock-stepping), run the scenario, write artifacts."""
+def run(scenario: Scenario, options: RunOptions = DEFAULT_OPTIONS, stream: TextIO = sys.stdout,
+        bringups: Bringups | None = None) -> RunResult:
+    """Bring up ``bringup --robot R`` (paused for lock-stepping), run the scenario, write artifacts.
+
+    Args:
+        scenario: what to run.
+        options: how (``launch`` False: against nodes already running).
+        stream: where the progress goes.
+        bringups: the bring-up of the previous run, reused when it has the same robot, scene and pace
+            (reset in between); None: a bring-up of its own, stopped at the end. Unused with ``launch`` False.
+    """
+    if not options.launch:
+        bringups = None
+    elif bringups is None:
+        with Bringups(stream, quiet=True) as own:
+            return run(scenario, options, stream, own)
     folder = run_folder(options.out, scenario.name)
     rtf = scenario.rtf if options.rtf is None else options.rtf
-    args = ["bringup", "--robot", scenario.robot, "--scene", scenario.scene, "--rtf", f"{rtf:g}", "--paused"]
     with RosSession("scenario_runner", use_sim_time=True) as session:
-        if options.launch:
-            with running(args, log_dir=folder) as process:
-                run_ = ScenarioRun(scenario, session, options, folder, stream)
-                result = run_.execute()
-                if not process.alive():
-                    result.failures.append(f"bringup exited early with code {process.process.returncode}; see {process.log_path}")
-                    result.passed = False
-                    result.report["passed"] = False
-                    result.report["failures"] = result.failures
-                _write_artifacts(run_, result, stream)
-        else:
+        if bringups is None:
             run_ = ScenarioRun(scenario, session, options, folder, stream)
             result = run_.execute()
             _write_artifacts(run_, result, stream)
+            return result
+        wall0 = time.monotonic()
+        bringup = bringups.acquire(scenario, rtf, session)
+        run_ = ScenarioRun(scenario, session, options, folder, stream, parameters=bringup.parameters)
+        reset_wall = time.monotonic() - wall0  # resetting a reused bring-up is part of the run's start-up
+        result = run_.execute()
+        result.startup_time += reset_wall
+        result.report["startup_wall_s"] = round(result.startup_time, 3)
+        bringup.runs += 1
+        bringup.trusted = not result.failures  # a run that ended in an error may leave what a reset does not mend
+        log = bringup.copy_log(folder)
+        if not bringup.process.alive():
+            result.failures.append(f"bringup exited early with code {bringup.process.process.returncode}; see {log}")
+            result.passed = False
+            result.report["passed"] = False
+            result.report["failures"] = result.failures
+        _write_artifacts(run_, result, stream)
     return result
+
+
+def run_all(scenarios: Sequence[Scenario], options: RunOptions = DEFAULT_OPTIONS,
+            stream: TextIO = sys.stdout) -> tuple[list[RunResult], int]:
+    """Run scenarios in order, consecutive ones of the same robot, scene and pace on one bring-up.
+
+    Returns:
+        each run's result, and how many bring-ups were started.
+    """
+    with Bringups(stream, quiet=options.quiet) as bringups:
+        results = [run(scenario, options, stream, bringups) for scenario in scenarios]
+        return results, bringups.started
 
 
 def _write_artifacts(run_: ScenarioRun, result: RunResult, stream: TextIO) -> None:

@@ -28,6 +28,7 @@ from sim_client.scenario.model.schema import Scenario
 from sim_client.scenario.model.series import Series, joint_series, object_series, odom_series, stamp_s
 from sim_client.scenario.model.steps import CmdVelStep, PushStep, SendGoalStep, SetParamStep, describe_step, step_kind
 from sim_client.scenario.outputs.recording import McapRecorder
+from sim_client.scenario.running.bringups import ParameterKeeper
 from sim_client.scenario.running.options import RunOptions
 from sim_client.scenario.running.progress import Progress, feedback_summary
 from sim_client.scenario.running.report import RunResult, Verdict, build_report, judge
@@ -44,7 +45,7 @@ class ScenarioRun:
     """One run of one scenario against nodes reachable through ``session``."""
 
     def __init__(self, scenario: Scenario, session: RosSession, options: RunOptions, folder: pathlib.Path,
-                 stream: TextIO = sys.stdout) -> None:
+                 stream: TextIO = sys.stdout, parameters: ParameterKeeper | None = None) -> None:
         self.scenario = scenario
         self.session = session
         self.options = options
@@ -82,6 +83,7 @@ class ScenarioRun:
         self._wall0 = 0.0  # wall time [s] the run started at, set by execute()
         self.mcap: McapRecorder | None = None
         self._last_discover = 0.0
+        self._kept_parameters = parameters  # the bring-up's start-up values, read before a node's first change
 
     def now(self) -> float:
         """The run's sim time [s]."""
@@ -238,9 +240,13 @@ class ScenarioRun:
 
     def set_param(self, step: SetParamStep) -> None:
         try:
+            if self._kept_parameters is not None:
+                self._kept_parameters.remember(self.session, step.node)
             ok, reason = Parameters(self.session, step.node).set(step.name, step.value)
         except ParameterError as error:
             raise StepFailure(str(error)) from None
+        except WaitTimeout as error:
+            raise StepFailure(f"{error}; is {step.node} running?") from None
         self.param_events.append({"t": self._elapsed(), "node": step.node, "name": step.name, "value": step.value,
                                   "accepted": ok, "reason": reason})
         wanted = "refused" if step.refused else "accepted"

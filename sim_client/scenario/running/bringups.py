@@ -1,0 +1,190 @@
+"""One bring-up for consecutive runs of the same robot, scene and pace: started once, reset between runs.
+
+A run on a reused bring-up gives the report a run on fresh nodes gives (apart from wall times):
+before it, the parameters the previous runs changed (``set_param`` steps) are set back to the values
+they had before the first change, and ``/sim/reset_simulation`` (SCOPE_ALL) puts the scene back to its
+keyframe, ends the goals still running in ``/sim`` and restarts sim time, and with it the publication
+grid, at 0: the state of a bring-up just started paused. Each run has its own client session, so its
+recordings start empty. A bring-up is not reused after a run that ended in an error (a failed step,
+not a failed expectation), nor when it has exited: the next run starts its own.
+"""
+
+from __future__ import annotations
+
+import pathlib
+import shutil
+import signal
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from typing import TextIO
+
+from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterValue
+from rclpy.parameter import Parameter
+
+from sim_client.scenario.model.schema import Scenario
+from sim_client.scenario.running.sim_time import SERVICE_WALL_S, StepFailure
+from sim_ros.processes import ChildProcess
+from sim_ros.session import RosSession, WaitTimeout
+from simulation_interfaces.msg import Result
+from simulation_interfaces.srv import ResetSimulation
+
+BringupKey = tuple[str, str, float]  # robot, scene, real-time factor
+
+
+@dataclass
+class ParameterKeeper:
+    """The values a bring-up's nodes had before a run first changed them, to set them back between runs.
+
+    A node is read (every parameter) just before a run sets one of its parameters for the first time on
+    this bring-up: until then it has its start-up values, as set back after every run.
+    """
+
+    kept: dict[str, dict[str, ParameterValue]] = field(default_factory=dict)  # node -> name -> value at start-up
+
+    def remember(self, session: RosSession, node: str) -> None:
+        """Read every parameter of ``node`` (``"locomotion"`` or ``"/locomotion"``), once per bring-up."""
+        node = node if node.startswith("/") else f"/{node}"
+        if node in self.kept:
+            return
+        client = session.parameters(node)
+        session.wait_for(client.services_are_ready, SERVICE_WALL_S, f"parameter services of {node}")
+        names = sorted(session.wait_future(client.list_parameters([], 0), SERVICE_WALL_S, f"list of {node}").result.names)
+        values = session.wait_future(client.get_parameters(names), SERVICE_WALL_S, f"parameters of {node}").values
+        self.kept[node] = dict(zip(names, values, strict=True))
+
+    def restore(self, session: RosSession) -> list[str]:
+        """Set back every kept parameter that differs now; returns ``node name`` of each one set back.
+
+        Raises:
+            StepFailure: a node refused its own start-up value.
+        """
+        restored = []
+        for node, kept in self.kept.items():
+            client = session.parameters(node)
+            session.wait_for(client.services_are_ready, SERVICE_WALL_S, f"parameter services of {node}")
+            names = list(kept)
+            now = session.wait_future(client.get_parameters(names), SERVICE_WALL_S, f"parameters of {node}").values
+            changed = [Parameter.from_parameter_msg(ParameterMsg(name=name, value=kept[name]))
+                       for name, value in zip(names, now, strict=True) if value != kept[name]]
+            if not changed:
+                continue
+            results = session.wait_future(client.set_parameters(changed), SERVICE_WALL_S, f"set back {node}").results
+            refused = [f"{p.name}: {r.reason}" for p, r in zip(changed, results, strict=True) if not r.successful]
+            if refused:
+                raise StepFailure(f"{node} refused its start-up values: {'; '.join(refused)}")
+            restored += [f"{node} {p.name}" for p in changed]
+        return restored
+
+
+@dataclass
+class Bringup:
+    """A running ``bringup`` process, the runs it served and the parameters they changed."""
+
+    key: BringupKey
+    process: ChildProcess
+    runs: int = 0
+    trusted: bool = True  # False after a run that ended in an error: not reused
+    parameters: ParameterKeeper = field(default_factory=ParameterKeeper)
+    _log_offset: int = 0
+    _last_folder: pathlib.Path | None = None
+
+    def prepare(self, session: RosSession) -> list[str]:
+        """Make a bring-up that served runs look just started: parameters, scene, goals, sim time.
+
+        Returns:
+            ``node name`` of each parameter set back.
+
+        Raises:
+            StepFailure, WaitTimeout: it could not be brought back (the caller starts a fresh one).
+        """
+        if self.runs == 0:
+            return []
+        restored = self.parameters.restore(session)
+        request = ResetSimulation.Request(scope=ResetSimulation.Request.SCOPE_ALL)
+        response = session.call(ResetSimulation, "/sim/reset_simulation", request, timeout=SERVICE_WALL_S)
+        if response.result.result != Result.RESULT_OK:
+            raise StepFailure(f"/sim/reset_simulation: {response.result.error_message}")
+        return restored
+
+    def copy_log(self, folder: pathlib.Path) -> pathlib.Path:
+        """Write what the nodes logged since the last copy to ``folder/bringup.log`` (the run's share)."""
+        target = folder / "bringup.log"
+        self._last_folder = folder
+        with open(self.process.log_path, "rb") as log, open(target, "ab") as out:
+            log.seek(self._log_offset)
+            shutil.copyfileobj(log, out)
+            self._log_offset = log.tell()
+        return target
+
+    def stop(self) -> None:
+        """Stop the nodes; their last output goes to the log of the last run (and to stderr after a crash)."""
+        code = self.process.stop()
+        if self._last_folder is not None:
+            self.copy_log(self._last_folder)
+        if code not in (0, -signal.SIGINT, 130):
+            sys.stderr.write(f"--- {' '.join(self.process.args)} exited with {code}; last output:\n"
+                             f"{self.process.output()[-3000:]}\n")
+
+
+class Bringups:
+    """Starts bring-ups for runs and keeps the last one for the next run of the same robot, scene and pace.
+
+    Use with ``with``: the bring-up still running is stopped at the end. ``started`` counts the bring-ups.
+
+    Args:
+        stream: where to say when a bring-up is started, reused or stopped.
+        quiet: say nothing.
+    """
+
+    def __init__(self, stream: TextIO = sys.stdout, quiet: bool = False) -> None:
+        self._stream = stream
+        self._quiet = quiet
+        self._logs = tempfile.TemporaryDirectory(prefix="bringups-")
+        self.current: Bringup | None = None
+        self.started = 0
+
+    def __enter__(self) -> Bringups:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _say(self, text: str) -> None:
+        if not self._quiet:
+            self._stream.write(text + "\n")
+            self._stream.flush()
+
+    def acquire(self, scenario: Scenario, rtf: float, session: RosSession) -> Bringup:
+        """The bring-up for a run of ``scenario`` at ``rtf``: the running one, reset, or a new one."""
+        key: BringupKey = (scenario.robot, scenario.scene, rtf)
+        current = self.current
+        if current is not None and current.key == key and not current.trusted:
+            self._say("the last run on the running bring-up ended in an error: starting a new one")
+        elif current is not None and current.key == key and not current.process.alive():
+            self._say(f"the running bring-up exited (code {current.process.process.returncode}): starting a new one")
+        elif current is not None and current.key == key:
+            try:
+                restored = current.prepare(session)
+                self._say(f"reusing the bring-up of {scenario.robot}/{scenario.scene} (run {current.runs + 1} on it): reset, "
+                          f"sim time 0{', set back: ' + ', '.join(restored) if restored else ''}")
+                return current
+            except (StepFailure, WaitTimeout) as error:
+                self._say(f"the running bring-up could not be reset ({error}): starting a new one")
+        self.stop()
+        args = ["bringup", "--robot", scenario.robot, "--scene", scenario.scene, "--rtf", f"{rtf:g}", "--paused"]
+        self.started += 1
+        log_dir = pathlib.Path(self._logs.name) / str(self.started)
+        self._say(f"starting bring-up {self.started}: {' '.join(args)}")
+        self.current = Bringup(key, ChildProcess(args, log_dir))
+        return self.current
+
+    def stop(self) -> None:
+        """Stop the running bring-up, if any."""
+        if self.current is not None:
+            bringup, self.current = self.current, None
+            bringup.stop()
+
+    def close(self) -> None:
+        self.stop()
+        self._logs.cleanup()
