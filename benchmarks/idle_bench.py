@@ -1,9 +1,9 @@
 """Idle CPU of every node of a bringup (figures for the closing note; not a test).
 
 For each robot, the nodes ``bringup`` would start (``sim_node``, ``arm_server`` and, for the G1,
-``locomotion_server``) run as separate processes on a ROS domain of their own, with nobody
-subscribed and no goal. Once every server answers (its action servers are discoverable), each
-process's CPU time (user + system, from ``/proc/<pid>/stat``) is read over a window of wall time:
+``locomotion_server`` and the device nodes) run under ``bringup``, each in its process, on a ROS
+domain of their own, with nobody subscribed and no goal. Once every server answers (its action
+servers are discoverable), each process's CPU time (user + system, from ``/proc/<pid>/stat``) is read over a window of wall time:
 
 - "running": ``/sim`` steps the physics at real_time_factor 1 and publishes its default streams
   (the servers are idle; the sim node does the physics and its publication work);
@@ -13,6 +13,11 @@ Next to them, the floor of any node on sim time: a bare rclpy node that only rec
 (at the sim's default 100 Hz) in a process of its own.
 
 Figures are percent of one core; the median of ``--rounds`` windows is printed.
+
+Then each process's memory, read once every server answers: resident (RSS, from
+``/proc/<pid>/status``) and, where ``/proc/<pid>/smaps_rollup`` is readable, proportional (PSS:
+a shared library counts once, split among the processes that map it), summed over the robot's
+processes next to the goal (the floor's bare node is listed, not summed).
 
 Usage: ``make bench-idle`` or ``.venv/bin/python benchmarks/idle_bench.py [--robots g1 panda] [--seconds 5]``.
 """
@@ -38,6 +43,7 @@ from sim_ros.processes import ChildProcess
 from sim_ros.session import RosSession
 
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
+MEMORY_GOAL_MB = 1200.0  # [MB] resident memory of a whole G1 bringup (issue 24)
 
 
 def cpu_seconds(pid: int) -> float:
@@ -47,19 +53,37 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS
 
 
-def cpu_percent(children: list[ChildProcess], seconds: float) -> dict[str, float]:
-    """Percent of one core each child used over ``seconds`` of wall time."""
+def cpu_percent(pids: dict[str, int], seconds: float) -> dict[str, float]:
+    """Percent of one core each process (name -> pid) used over ``seconds`` of wall time."""
     start_wall = time.perf_counter()
-    start = {c.args[0]: cpu_seconds(c.process.pid) for c in children}
+    start = {name: cpu_seconds(pid) for name, pid in pids.items()}
     time.sleep(seconds)  # a measurement window, not a wait for a condition
     wall = time.perf_counter() - start_wall
-    return {c.args[0]: 100.0 * (cpu_seconds(c.process.pid) - start[c.args[0]]) / wall for c in children}
+    return {name: 100.0 * (cpu_seconds(pid) - start[name]) / wall for name, pid in pids.items()}
+
+
+def child_pids(parent: int) -> dict[str, int]:
+    """The processes ``parent`` started, by executable name (from ``/proc/*/stat`` and ``cmdline``)."""
+    found = {}
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/stat") as stat:
+                ppid = int(stat.read().rsplit(")", 1)[1].split()[1])
+            with open(f"/proc/{entry}/cmdline", "rb") as cmdline:
+                args = cmdline.read().split(b"\0")
+        except (OSError, ValueError, IndexError):  # it ended meanwhile
+            continue
+        if ppid == parent and len(args) > 1:
+            found[os.path.basename(args[1].decode())] = int(entry)  # args[0] is the venv's python
+    return found
 
 
 def wait_ready(session: RosSession, robot: str, deadline_s: float = 60.0) -> None:
     """Until every server of ``robot`` has its action servers discoverable."""
     wanted = {"/move_arm", "/pick_place"}
-    if robot_models.load(robot).feet_sites:
+    if robot_models.walks(robot):
         wanted |= {"/walk", "/navigate_to_pose"}
     deadline = time.monotonic() + deadline_s
     while time.monotonic() < deadline:
@@ -68,6 +92,30 @@ def wait_ready(session: RosSession, robot: str, deadline_s: float = 60.0) -> Non
             return
         time.sleep(0.2)  # polling the ROS graph, bounded by the deadline
     raise RuntimeError(f"servers of {robot} not up within {deadline_s:.0f} s: want {sorted(wanted)}")
+
+
+def memory_mb(pid: int) -> tuple[float, float | None]:
+    """(RSS, PSS) of a process [MB]; PSS is None when ``smaps_rollup`` cannot be read."""
+    with open(f"/proc/{pid}/status") as status:
+        rss_kb = next(int(line.split()[1]) for line in status if line.startswith("VmRSS:"))
+    try:
+        with open(f"/proc/{pid}/smaps_rollup") as rollup:
+            pss_kb: int | None = next(int(line.split()[1]) for line in rollup if line.startswith("Pss:"))
+    except (OSError, StopIteration):
+        pss_kb = None
+    return rss_kb / 1024.0, None if pss_kb is None else pss_kb / 1024.0
+
+
+def print_memory(robot: str, memory: dict[str, tuple[float, float | None]]) -> None:
+    """Each process's RSS and PSS, and the robot's processes summed next to the goal."""
+    for name, (rss, pss) in memory.items():
+        print(f"  {robot:6s} {name:18s} RSS: {rss:6.0f} MB   PSS: {'-' if pss is None else f'{pss:.0f}':>6s} MB", flush=True)
+    nodes = [value for name, value in memory.items() if not name.startswith("floor")]
+    total_rss = sum(rss for rss, _ in nodes)
+    pss_values = [pss for _, pss in nodes if pss is not None]
+    total_pss = f"{sum(pss_values):.0f} MB" if len(pss_values) == len(nodes) else "-"
+    print(f"  {robot:6s} {'all ' + str(len(nodes)) + ' processes':18s} RSS: {total_rss:6.0f} MB   PSS: {total_pss:>9s}"
+          f"   (goal for a G1 bringup: <= {MEMORY_GOAL_MB:.0f} MB)", flush=True)
 
 
 def median_table(rounds: list[dict[str, float]]) -> dict[str, float]:
@@ -90,21 +138,28 @@ except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
 
 
 def bench_robot(robot: str, seconds: float, rounds: int) -> None:
-    children = [ChildProcess(command) for command in commands_for(parse_args(["--robot", robot]), [])]
-    children.append(ChildProcess(["python", "-c", CLOCK_FLOOR]))
-    children[-1].args[0] = "floor: bare node"
+    expected = [command[0] for command in commands_for(parse_args(["--robot", robot]), [])]
+    bringup = ChildProcess(["bringup", "--robot", robot])
+    floor = ChildProcess(["python", "-c", CLOCK_FLOOR])
     try:
         with RosSession(f"idle_bench_{robot}", use_sim_time=False) as session:
             wait_ready(session, robot)
             time.sleep(2.0)  # let start-up transients (discovery, first messages) pass before measuring
-            running = median_table([cpu_percent(children, seconds) for _ in range(rounds)])
+            nodes = child_pids(bringup.process.pid)
+            if sorted(nodes) != sorted(expected):
+                raise RuntimeError(f"bringup runs {sorted(nodes)}, expected {sorted(expected)}")
+            pids = {name: nodes[name] for name in expected} | {"bringup": bringup.process.pid,
+                                                                  "floor: bare node": floor.process.pid}
+            memory = {name: memory_mb(pid) for name, pid in pids.items()}
+            running = median_table([cpu_percent(pids, seconds) for _ in range(rounds)])
             session.call(Trigger, "/sim/pause", Trigger.Request(), timeout=10.0)
-            paused = median_table([cpu_percent(children, seconds) for _ in range(rounds)])
+            paused = median_table([cpu_percent(pids, seconds) for _ in range(rounds)])
     finally:
-        for child in children:
-            child.stop()
+        floor.stop()
+        bringup.stop()
     for name in running:
         print(f"  {robot:6s} {name:18s} running: {running[name]:5.1f} %   paused: {paused[name]:5.1f} %", flush=True)
+    print_memory(robot, memory)
 
 
 def main() -> None:

@@ -10,10 +10,12 @@ carries it, and inside it the MuJoCo camera, which looks along its own -z with +
 from __future__ import annotations
 
 from dataclasses import dataclass
-
-import mujoco
+from typing import TYPE_CHECKING
 
 from robot_models.validation import check_range, is_number
+
+if TYPE_CHECKING:  # mujoco is imported where a spec is edited: the layouts are read without it
+    import mujoco
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
@@ -107,6 +109,8 @@ def prepare_scene_for_cameras(spec: mujoco.MjSpec, offscreen_size: tuple[int, in
     Returns:
         The name of the floor material (assign it to the floor geom).
     """
+    import mujoco
+
     spec.visual.global_.offwidth, spec.visual.global_.offheight = offscreen_size
     spec.visual.headlight.ambient = [0.2, 0.2, 0.2]
     spec.visual.headlight.diffuse = [0.25, 0.25, 0.25]

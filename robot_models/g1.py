@@ -24,8 +24,9 @@ import numpy as np
 import robot_models.g1_constants as names
 from robot_models.cameras import OPTICAL_IN_BODY_QUAT, CameraLayout, add_optical_camera, prepare_scene_for_cameras
 from robot_models.g1_gait import BIPED, WALKING
+from robot_models.g1_layout import CAMERAS, SENSORS
 from robot_models.physics import set_physics_options
-from robot_models.sensors import BatteryLayout, FootLayout, ImuLayout, SensorLayout, WristLayout, add_sensors
+from robot_models.sensors import add_sensors
 from robot_models.spec import ArmScene, Obstacle, RobotSpec, UnknownSceneError, add_position_actuator, joint_limits_of, read_urdf
 
 PHYSICS_TIMESTEP_S = 0.002
@@ -43,19 +44,6 @@ UPPER_BODY_KP = 150.0
 UPPER_BODY_KV = 3.0
 KD_OVER_KP = 0.03
 
-
-
-SENSORS = SensorLayout(
-    imu=ImuLayout(frame=names.IMU_FRAME, body=names.ROOT_BODY, position_in_body=names.IMU_SITE_IN_PELVIS),
-    feet=(FootLayout("left_foot", names.LEFT_SOLE_SITE, names.LEFT_FOOT_BODY, names.LEFT_SOLE_GEOM),
-          FootLayout("right_foot", names.RIGHT_SOLE_SITE, names.RIGHT_FOOT_BODY, names.RIGHT_SOLE_GEOM)),
-    wrists=(WristLayout("left_wrist", "left_arm", names.LEFT_WRIST_FT_SITE, names.LEFT_HAND_BODY),
-            WristLayout("right_wrist", "right_arm", names.RIGHT_WRIST_FT_SITE, names.RIGHT_HAND_BODY)),
-    # The G1's 13-cell Li-ion pack: 9 Ah at 48 V nominal, 54.6 V full; ~60 W for its computers at rest.
-    battery=BatteryLayout(capacity_wh=432.0, idle_power_w=60.0, voltage_full_v=54.6, voltage_empty_v=42.0),
-)
-
-
 # The head camera's tilt mount: a small servo (a 50 g camera balanced on its axis, a geared motor's
 # reflected inertia, critically damped, 2 N m at most).
 HEAD_CAMERA_MASS_KG = 0.05
@@ -64,20 +52,6 @@ HEAD_CAMERA_TILT_KV = 0.4  # [N m s/rad]
 HEAD_CAMERA_TILT_FORCE_LIMIT = 2.0  # [N m]
 HEAD_CAMERA_TILT_ARMATURE = 0.005  # [kg m^2]
 HEAD_CAMERA_TILT_DAMPING = 0.05  # [N m s/rad]
-
-CAMERAS = (
-    CameraLayout(
-        name=names.HEAD_CAMERA,
-        mj_camera=names.HEAD_CAMERA,
-        optical_frame=names.HEAD_CAMERA_OPTICAL_FRAME,
-        fovy_deg=42.5,  # the D435's colour camera: 69 x 42.5 deg
-        tilt_joint=names.HEAD_CAMERA_TILT_JOINT,
-        # Up to 0.5 rad up (the head's front cover); down to 0.9 rad, past the real D435's fixed 0.83 rad
-        # (the floor from ~0.5 m ahead of the feet).
-        tilt_range_rad=(-0.5, 0.9),
-        default_tilt_rad=0.0,  # straight ahead
-    ),
-)
 
 
 def _gain_for(joint: str) -> tuple[float, float]:

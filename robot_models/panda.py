@@ -20,9 +20,10 @@ import mujoco
 import numpy as np
 
 import robot_models.panda_constants as names
-from robot_models.cameras import CameraLayout, add_optical_camera, prepare_scene_for_cameras
+from robot_models.cameras import add_optical_camera, prepare_scene_for_cameras
+from robot_models.panda_layout import CAMERAS, SENSORS
 from robot_models.physics import set_physics_options
-from robot_models.sensors import SensorLayout, WristLayout, add_sensors
+from robot_models.sensors import add_sensors
 from robot_models.spec import (
     ArmScene,
     GraspLimits,
@@ -42,11 +43,6 @@ FINGER_KP = 1000.0
 FINGER_KV = 50.0
 FINGER_FORCE_LIMIT_N = 70.0
 GRASP = GraspLimits(max_force_n=FINGER_FORCE_LIMIT_N, default_force_n=20.0)
-SENSORS = SensorLayout(wrists=(WristLayout("wrist", "arm", names.WRIST_FT_SITE, names.HAND_BODY),))
-CAMERAS = (
-    CameraLayout(name=names.SCENE_CAMERA, mj_camera=names.SCENE_CAMERA, optical_frame=names.SCENE_CAMERA_OPTICAL_FRAME,
-                 fovy_deg=45.0),
-)
 CONTACT_SOLREF = [0.004, 1.0]
 GRASP_FRICTION = [1.0, 0.02, 0.001]
 

@@ -2,7 +2,9 @@
 
 Each robot module (``robot_models.g1``, ``robot_models.panda``) builds its scenes from the building
 blocks (:mod:`robot_models.spec`, :mod:`~robot_models.cameras`, :mod:`~robot_models.sensors`,
-:mod:`~robot_models.physics`) and knows nothing of the others nor of this registry.
+:mod:`~robot_models.physics`) and knows nothing of the others nor of this registry. A robot module
+(and with it mujoco and the meshes) is imported only to build a model: the facts known without
+building it (sensors, cameras) come from the robot's ``*_layout`` module.
 """
 
 from __future__ import annotations
@@ -11,13 +13,13 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Final
 
-import robot_models.g1 as g1
 import robot_models.g1_constants as g1_names
-import robot_models.panda as panda
+import robot_models.g1_layout as g1_layout
 import robot_models.panda_constants as panda_names
+import robot_models.panda_layout as panda_layout
 from robot_models.cameras import CameraLayout
 from robot_models.sensors import SensorLayout
-from robot_models.spec import RobotSpec, UnknownRobotError
+from robot_models.spec import RobotModelError, RobotSpec, UnknownRobotError, UnknownSceneError
 
 G1: Final = g1_names.ROBOT_NAME
 PANDA: Final = panda_names.ROBOT_NAME
@@ -33,6 +35,8 @@ class RobotEntry:
         default_scene: the scene built when none is named.
         sensors: its sensor layout (and battery pack).
         cameras: its cameras (names, frames, tilt ranges).
+        scenes: the scenes it can be built in.
+        walks: whether it has feet to walk on (its spec has ``feet_sites`` and ``walking``).
     """
 
     name: str
@@ -40,13 +44,28 @@ class RobotEntry:
     default_scene: str
     sensors: SensorLayout
     cameras: tuple[CameraLayout, ...]
+    scenes: tuple[str, ...]
+    walks: bool
+
+
+def _build_g1(scene: str) -> RobotSpec:
+    import robot_models.g1 as g1  # mujoco and the meshes only once a model is built
+
+    return g1.load(scene)
+
+
+def _build_panda(scene: str) -> RobotSpec:
+    import robot_models.panda as panda  # mujoco and the meshes only once a model is built
+
+    return panda.load(scene)
 
 
 _ROBOTS: Final = {
     entry.name: entry
     for entry in (
-        RobotEntry(G1, g1.load, g1_names.DEFAULT_SCENE, g1.SENSORS, g1.CAMERAS),
-        RobotEntry(PANDA, panda.load, panda_names.DEFAULT_SCENE, panda.SENSORS, panda.CAMERAS),
+        RobotEntry(G1, _build_g1, g1_names.DEFAULT_SCENE, g1_layout.SENSORS, g1_layout.CAMERAS, g1_names.SCENES, walks=True),
+        RobotEntry(PANDA, _build_panda, panda_names.DEFAULT_SCENE, panda_layout.SENSORS, panda_layout.CAMERAS, panda_names.SCENES,
+                   walks=False),
     )
 }
 
@@ -73,7 +92,10 @@ def load(name: str, scene: str | None = None) -> RobotSpec:
         UnknownSceneError: the robot has no such scene; the message lists its scenes.
     """
     entry = entry_of(name)
-    return entry.build(scene or entry.default_scene)
+    robot = entry.build(scene or entry.default_scene)
+    if (robot.walking is not None and bool(robot.feet_sites)) != entry.walks:  # the registry's fact, checked once built
+        raise RobotModelError(f"robot {name!r}: the registry says walks={entry.walks}, its spec says otherwise")
+    return robot
 
 
 def sensors_of(name: str) -> SensorLayout:
@@ -92,3 +114,24 @@ def cameras_of(name: str) -> tuple[CameraLayout, ...]:
         UnknownRobotError: the name is not registered; the message lists the names that are.
     """
     return entry_of(name).cameras
+
+
+def check_scene(name: str, scene: str | None = None) -> None:
+    """Check that the named robot has that scene (``None`` or ``""`` = its default), without building it.
+
+    Raises:
+        UnknownRobotError: the name is not registered; the message lists the names that are.
+        UnknownSceneError: the robot has no such scene; the message lists its scenes (as :func:`load` says).
+    """
+    entry = entry_of(name)
+    if scene and scene not in entry.scenes:
+        raise UnknownSceneError(f"unknown scene {scene!r} for {entry.name}; scenes: {', '.join(entry.scenes)}")
+
+
+def walks(name: str) -> bool:
+    """Whether the named robot walks (has feet sites and walking limits), without building its model.
+
+    Raises:
+        UnknownRobotError: the name is not registered; the message lists the names that are.
+    """
+    return entry_of(name).walks

@@ -14,8 +14,11 @@ with sensors disabled (``mjDSBL_SENSOR``) and the simulation evaluates them only
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import mujoco
+if TYPE_CHECKING:  # mujoco is imported where a spec is edited: the layouts are read without it
+    import mujoco
+
 
 Vec3 = tuple[float, float, float]
 
@@ -127,6 +130,8 @@ class SensorLayout:
 def add_sensors(spec: mujoco.MjSpec, layout: SensorLayout) -> None:
     """Add the layout's sites (those that do not exist yet) and MuJoCo sensors to ``spec``; disable sensor evaluation
     in the physics step (they are evaluated when read)."""
+    import mujoco
+
     existing = {site.name for site in spec.sites}
 
     def site(body: str, name: str, position: Vec3) -> None:

@@ -6,13 +6,15 @@ import math
 import pathlib
 import sys
 from dataclasses import dataclass, field
-
-import mujoco
+from typing import TYPE_CHECKING
 
 from robot_models.biped import BipedDescription
 from robot_models.cameras import CameraLayout
 from robot_models.sensors import SensorLayout
 from robot_models.validation import check_range
+
+if TYPE_CHECKING:  # mujoco is imported where a spec is edited: the types and errors are read without it
+    import mujoco
 
 
 class RobotModelError(Exception):
@@ -265,6 +267,8 @@ def add_position_actuator(
     through the servo as ``ctrl = q_des + tau_ff / kp``; torque stays limited by the force range
     (or the joint's actuator force range from the URDF effort limit).
     """
+    import mujoco
+
     actuator = spec.add_actuator(name=joint, target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
     actuator.set_to_position(kp=kp, kv=kv)
     actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE

@@ -22,6 +22,7 @@ from typing import Any
 
 import robot_models
 from nodes.launch.result_keeper import ResultKeeper
+from nodes.servers.actions import ACTION_TYPES, SERVED_BY
 from sim_ros.processes import ChildProcess
 
 
@@ -48,7 +49,7 @@ def commands_for(options: argparse.Namespace, ros_args: list[str]) -> list[list[
     if options.scene:
         sim += ["-p", f"scene:={options.scene}"]
     servers = [["arm_server", "--ros-args", "-p", f"robot:={options.robot}"]]
-    if robot_models.load(options.robot).feet_sites:
+    if robot_models.walks(options.robot):
         servers.append(["locomotion_server", "--ros-args", "-p", f"robot:={options.robot}"])
     sensors = robot_models.sensors_of(options.robot)
     if sensors.battery is not None:
@@ -66,12 +67,8 @@ def commands_for(options: argparse.Namespace, ros_args: list[str]) -> list[list[
 
 def served_actions(commands: list[list[str]]) -> dict[str, list[tuple[str, Any]]]:
     """The actions each of these executables serves: executable -> [(action name, action type)]."""
-    from nodes.servers import arm as arm_server, locomotion as locomotion_server
-    from nodes.servers.protocol import BINDINGS
-
-    by_executable = {"arm_server": arm_server.ACTIONS, "locomotion_server": locomotion_server.ACTIONS}
-    return {command[0]: [(name, BINDINGS[skill].action_type) for skill, name in by_executable[command[0]].items()]
-            for command in commands if command[0] in by_executable}
+    return {command[0]: [(name, ACTION_TYPES[skill]) for skill, name in SERVED_BY[command[0]].items()]
+            for command in commands if command[0] in SERVED_BY}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -79,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
     split = argv.index("--ros-args") if "--ros-args" in argv else len(argv)
     options = parse_args(argv[:split])
     try:
-        robot_models.load(options.robot, options.scene or None)
+        robot_models.check_scene(options.robot, options.scene or None)  # names only: bringup builds no model
     except robot_models.RobotModelError as error:
         print(f"bringup: {error}", file=sys.stderr)
         return 2

@@ -12,6 +12,7 @@ from rclpy.parameter import Parameter
 
 import robot_models
 from nodes.runtime.executor import ServerExecutor, drop_qos_event_handlers
+from nodes.runtime.memory import map_large_buffers, release_build_memory
 from nodes.runtime.parameters import ParameterSpec, StartupError, declare, guard_parameter_services
 from nodes.runtime.sim_link import robot_of_sim, sim_time_overrides
 from nodes.runtime.startup import StopRequest, bounded_cleanup, fail, help_requested, init_ros, program_name
@@ -66,10 +67,12 @@ def _serve(node_factory: NodeFactory, node_name: str, argv: list[str], before_ex
     # a node says it serves from its constructor, and a Ctrl-C right after that (as soon as a client saw
     # it serving) must not land as a KeyboardInterrupt between the constructor and the spin loop.
     stop = StopRequest.install()
+    map_large_buffers()
     try:
         node = node_factory(robot, overrides)
     except robot_models.RobotModelError as error:
         raise StartupError(str(error)) from None
+    release_build_memory()
     drop_qos_event_handlers(node)
     guard_parameter_services(node)
     executor = ServerExecutor(num_threads=4)
@@ -88,4 +91,5 @@ def _serve(node_factory: NodeFactory, node_name: str, argv: list[str], before_ex
             node.destroy_node()
             executor.shutdown()
             rclpy.try_shutdown()
+        StopRequest.ignore_from_now()
     return 0

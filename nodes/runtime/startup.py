@@ -103,6 +103,18 @@ class StopRequest:
     def _on_signal(self, signum: int, frame: Any) -> None:
         self.requested = True  # a plain store: safe wherever the main thread was interrupted
 
+    @staticmethod
+    def ignore_from_now() -> None:
+        """Once the node is cleaned up: ignore SIGINT and SIGTERM while the process exits.
+
+        At exit Python resets a signal whose handler is a Python function to the system default, so a
+        second Ctrl-C (or a supervisor's second SIGINT) arriving while the interpreter finalizes (Fast
+        DDS takes a moment to close) would kill the process with -2 after a clean stop. Ignored signals
+        stay ignored; SIGKILL still ends it.
+        """
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, signal.SIG_IGN)
+
 
 CLEANUP_LIMIT_S = 20.0  # [s] wall time a node's clean-up after Ctrl-C may take before the process is ended
 

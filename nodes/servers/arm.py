@@ -22,6 +22,7 @@ from nodes.runtime.parameters import ParameterSpec, declare
 from nodes.runtime.serve import spin_server
 from nodes.runtime.startup import help_text
 from nodes.runtime.streams import OnDemandTopic
+from nodes.servers.actions import ARM_ACTIONS
 from nodes.servers.protocol import ARM_SETTINGS, arm_name
 from nodes.servers.server import end_goals_before_exit, skill_servers
 from sim_bridge.arm import ArmKinematics
@@ -33,7 +34,7 @@ from sim_ros.conversions import pose_from_msg
 from sim_ros.names import JOINT_STATES_TOPIC, ODOM_TOPIC
 
 NODE_NAME = "arm"
-ACTIONS = {"move_arm": "/move_arm", "pick_place": "/pick_place"}  # skill -> the action that serves it
+ACTIONS = ARM_ACTIONS  # skill -> the action that serves it
 FRESH_TIMEOUT_S = 2.0  # wall seconds to wait for a first message of a stream subscribed on demand
 
 

@@ -18,11 +18,12 @@ import robot_models
 from nodes.runtime.parameters import ParameterSpec, StartupError, declare
 from nodes.runtime.serve import spin_server
 from nodes.runtime.startup import help_text
+from nodes.servers.actions import LOCOMOTION_ACTIONS
 from nodes.servers.reset_pose import ResetPoseService
 from nodes.servers.server import end_goals_before_exit, skill_servers
 
 NODE_NAME = "locomotion"
-ACTIONS = {"walk": "/walk", "navigate_to_pose": "/navigate_to_pose"}  # skill -> the action that serves it
+ACTIONS = LOCOMOTION_ACTIONS  # skill -> the action that serves it
 SETTINGS = ("walking_speed", "max_yaw_rate", "obstacle_detection_threshold", "robot_radius", "xy_goal_tolerance",
             "yaw_goal_tolerance", "replan_distance")
 

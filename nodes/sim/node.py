@@ -24,6 +24,7 @@ from rclpy.parameter import Parameter
 
 import robot_models
 from nodes.runtime.executor import ServerExecutor, drop_qos_event_handlers
+from nodes.runtime.memory import map_large_buffers, release_build_memory
 from nodes.runtime.parameters import ParameterSpec, StartupError, declare, guard_parameter_services
 from nodes.runtime.startup import StopRequest, bounded_cleanup, fail, help_requested, help_text, init_ros, program_name
 from nodes.sim.controllers import InLoopPlugins
@@ -121,7 +122,9 @@ class SimNode(LifecycleNode):
             self._pacer.reanchor()
             return TransitionCallbackReturn.SUCCESS
         try:
+            map_large_buffers()
             robot = self._configure()
+            release_build_memory()
         except Exception as error:  # noqa: BLE001 - any cause is reported as it is, and the node stays unconfigured
             self.configure_error = str(error) if isinstance(error, (StartupError, robot_models.RobotModelError)) \
                 else f"{type(error).__name__}: {error}"
@@ -360,6 +363,7 @@ def main(args: list[str] | None = None) -> int:
             node.destroy()
             executor.shutdown()
             rclpy.try_shutdown()
+        StopRequest.ignore_from_now()
     return 0
 
 

@@ -1,4 +1,4 @@
-"""The private model an arm's IK runs on: colliding meshes, the other DoFs unlimited, the arm's collision pairs."""
+"""The private model the arms' IK runs on: colliding meshes, the other DoFs unlimited, each arm's collision pairs."""
 
 from __future__ import annotations
 
@@ -65,27 +65,32 @@ def build_collision_model(robot: RobotSpec, scene: ArmScene, infos: dict[str, Ar
 
 
 def build_ik_model(
-    base: mujoco.MjModel, scene: ArmScene, info: ArmInfo,
-) -> tuple[mujoco.MjModel, list[tuple[list[int], list[int]]]]:
-    """A private copy of the model for one arm's IK, and that arm's collision pairs.
+    base: mujoco.MjModel, scene: ArmScene, infos: dict[str, ArmInfo],
+) -> tuple[mujoco.MjModel, dict[str, list[tuple[list[int], list[int]]]]]:
+    """A private copy of the model for the arms' IK, and each arm's collision pairs.
 
-    Only the arm's joints keep their position limits in the copy: every other DoF is frozen by an
-    equality constraint, and a frozen DoF measured a hair outside its range would make mink's
-    ConfigurationLimit contradict the freezing constraint.
+    Only the arms' joints keep their position limits in the copy: every other DoF is frozen by an
+    equality constraint in each arm's problem, and a frozen DoF measured a hair outside its range
+    would make mink's ConfigurationLimit contradict the freezing constraint. One copy serves every
+    arm (the G1's IK model is ~60 MB): an arm's solve bounds only its own joints (the other arm is
+    frozen there, and the arm-only QP of :class:`~sim_bridge.arm.ik_problem.IKProblem` eliminates
+    the frozen DoFs), so the other arm's limits never enter it.
 
     Args:
         base: the robot's model, with the arm and obstacle geoms colliding (see :func:`build_collision_model`).
         scene: the robot's arm facts.
-        info: the arm.
+        infos: the arms, by name.
 
     Returns:
-        The IK model and mink collision pairs (arm link geoms, obstacle geoms).
+        The IK model, and per arm its mink collision pairs (arm link geoms, obstacle geoms).
     """
     model = copy.deepcopy(base)
-    arm_joint_ids = {model.joint(j).id for j in info.joints}
+    arm_joint_ids = {model.joint(j).id for info in infos.values() for j in info.joints}
     for joint_id in range(model.njnt):
         if joint_id not in arm_joint_ids:
             model.jnt_limited[joint_id] = 0
-    arm_geoms, obstacle_geoms = _arm_and_obstacle_geoms(model, scene, info)
-    pairs = [(arm_geoms, obstacle_geoms)] if arm_geoms and obstacle_geoms else []
+    pairs = {}
+    for arm, info in infos.items():
+        arm_geoms, obstacle_geoms = _arm_and_obstacle_geoms(model, scene, info)
+        pairs[arm] = [(arm_geoms, obstacle_geoms)] if arm_geoms and obstacle_geoms else []
     return model, pairs

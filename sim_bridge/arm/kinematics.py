@@ -79,11 +79,10 @@ class ArmKinematics:
         self.posture_qpos = robot.model.key(robot.default_keyframe).qpos.copy()
         self.tracking: dict[str, IKProblem] = {}
         self.offline: dict[str, IKProblem] = {}
-        collision_model = build_collision_model(robot, self.scene, self.arms)
+        ik_model, pairs = build_ik_model(build_collision_model(robot, self.scene, self.arms), self.scene, self.arms)
         for arm, info in self.arms.items():
-            model, pairs = build_ik_model(collision_model, self.scene, info)
-            self.tracking[arm] = IKProblem(model, info, pairs, self.posture_qpos, self.config, True)
-            self.offline[arm] = IKProblem(model, info, pairs, self.posture_qpos, self.config, False)
+            self.tracking[arm] = IKProblem(ik_model, info, pairs[arm], self.posture_qpos, self.config, True)
+            self.offline[arm] = IKProblem(ik_model, info, pairs[arm], self.posture_qpos, self.config, False)
         self.model = robot.model
         self._data = mujoco.MjData(self.model)
 

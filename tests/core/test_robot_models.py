@@ -165,3 +165,20 @@ def test_arm_facts_live_on_the_spec():
     assert must_avoid <= set(g1.arm_scene.obstacle_bodies)
     with pytest.raises(ValueError, match="no grasp limits"):
         dataclasses.replace(panda, grasp=None)
+
+
+@pytest.mark.parametrize("name", robot_models.ROBOT_NAMES)
+def test_the_registry_s_facts_agree_with_every_built_scene(name):
+    """bringup decides from the registry without building a model: its facts must be the built spec's."""
+    from robot_models.registry import entry_of
+
+    entry = entry_of(name)
+    for scene in entry.scenes:
+        robot_models.check_scene(name, scene)
+        spec = robot_models.load(name, scene)
+        assert spec.scene == scene
+        assert robot_models.walks(name) == (spec.walking is not None and bool(spec.feet_sites))
+        assert robot_models.sensors_of(name) == spec.sensors
+        assert robot_models.cameras_of(name) == spec.cameras
+    with pytest.raises(robot_models.UnknownSceneError, match="scenes: "):
+        robot_models.check_scene(name, "no_such_scene")
