@@ -15,7 +15,7 @@ from nodes.runtime.executor import ServerExecutor, drop_qos_event_handlers
 from nodes.runtime.memory import map_large_buffers, release_build_memory
 from nodes.runtime.parameters import ParameterSpec, StartupError, declare, guard_parameter_services
 from nodes.runtime.sim_link import robot_of_sim, sim_time_overrides
-from nodes.runtime.startup import StopRequest, bounded_cleanup, fail, help_requested, init_ros, program_name
+from nodes.runtime.startup import StopRequest, bounded_cleanup, end_process, fail, help_requested, init_ros, program_name
 
 NodeFactory = Callable[[str, list[Parameter]], Node]  # (robot, parameter overrides) -> the node
 BeforeExit = Callable[[Node, Executor], None]  # runs while the context is still up, before the node is destroyed
@@ -91,5 +91,4 @@ def _serve(node_factory: NodeFactory, node_name: str, argv: list[str], before_ex
             node.destroy_node()
             executor.shutdown()
             rclpy.try_shutdown()
-        StopRequest.ignore_from_now()
-    return 0
+    end_process(0)

@@ -10,11 +10,12 @@ from __future__ import annotations
 
 import contextlib
 import faulthandler
+import os
 import re
 import signal
 import sys
 from collections.abc import Iterator, Sequence
-from typing import Any
+from typing import Any, NoReturn
 
 from nodes.runtime.parameters import ParameterSpec, StartupError, allowed
 
@@ -103,17 +104,18 @@ class StopRequest:
     def _on_signal(self, signum: int, frame: Any) -> None:
         self.requested = True  # a plain store: safe wherever the main thread was interrupted
 
-    @staticmethod
-    def ignore_from_now() -> None:
-        """Once the node is cleaned up: ignore SIGINT and SIGTERM while the process exits.
 
-        At exit Python resets a signal whose handler is a Python function to the system default, so a
-        second Ctrl-C (or a supervisor's second SIGINT) arriving while the interpreter finalizes (Fast
-        DDS takes a moment to close) would kill the process with -2 after a clean stop. Ignored signals
-        stay ignored; SIGKILL still ends it.
-        """
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(sig, signal.SIG_IGN)
+def end_process(code: int) -> NoReturn:
+    """End a node's process once it has cleaned up (goals ended, node destroyed, ROS shut down).
+
+    Python's finalization is skipped: it joins the worker threads rclpy's executor leaves behind, and
+    one still inside a callback when the node was destroyed held a stopped node up until it was killed
+    (and at exit Python resets the Ctrl-C handler to the default, so a second Ctrl-C then ended it -2).
+    Nothing is left to do but flush the output.
+    """
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
 
 
 CLEANUP_LIMIT_S = 20.0  # [s] wall time a node's clean-up after Ctrl-C may take before the process is ended

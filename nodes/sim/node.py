@@ -26,7 +26,16 @@ import robot_models
 from nodes.runtime.executor import ServerExecutor, drop_qos_event_handlers
 from nodes.runtime.memory import map_large_buffers, release_build_memory
 from nodes.runtime.parameters import ParameterSpec, StartupError, declare, guard_parameter_services
-from nodes.runtime.startup import StopRequest, bounded_cleanup, fail, help_requested, help_text, init_ros, program_name
+from nodes.runtime.startup import (
+    StopRequest,
+    bounded_cleanup,
+    end_process,
+    fail,
+    help_requested,
+    help_text,
+    init_ros,
+    program_name,
+)
 from nodes.sim.controllers import InLoopPlugins
 from nodes.sim.publication import Publications
 from nodes.sim.services import SimServices
@@ -363,8 +372,7 @@ def main(args: list[str] | None = None) -> int:
             node.destroy()
             executor.shutdown()
             rclpy.try_shutdown()
-        StopRequest.ignore_from_now()
-    return 0
+    end_process(0)
 
 
 if __name__ == "__main__":
