@@ -262,10 +262,14 @@ def test_set_entity_state_moves_the_g1_base_and_it_stands_there(client):
 
 def test_an_inactive_sim_is_paused_steps_and_refuses_to_play(client):
     from lifecycle_msgs.msg import Transition
-    from lifecycle_msgs.srv import ChangeState
+    from lifecycle_msgs.srv import ChangeState, GetState
 
     args = ["sim_node", "--ros-args", "-p", "robot:=panda", "-p", "autostart:=false"]
     with running(args) as process:
+        # A query first, sent again until answered: the first response of a node just started can be lost
+        # while its side of discovery matches this client's reply reader; a transition is sent only once.
+        assert client.call(GetState, "/sim/get_state", GetState.Request(), timeout=STARTUP_S,
+                           resend_every_s=2.0).current_state.label == "unconfigured"
         configure = ChangeState.Request(transition=Transition(id=Transition.TRANSITION_CONFIGURE))
         assert client.call(ChangeState, "/sim/change_state", configure, timeout=STARTUP_S).success
         assert get_state(client) == SimulationState.STATE_PAUSED, "configured, not active: nothing steps the physics"
