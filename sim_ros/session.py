@@ -98,6 +98,7 @@ class RosSession:
         self._thread = threading.Thread(target=self._spin, name=f"{name}-executor", daemon=True)
         self._thread.start()
         self._parameter_clients: dict[str, AsyncParameterClient] = {}
+        self.recorders: list[TopicRecorder[Any]] = []  # every recorder made by :meth:`record`, in order
         self._service_clients: dict[tuple[Any, str], Any] = {}
 
     def _spin(self) -> None:
@@ -180,6 +181,7 @@ class RosSession:
         subscription = self.node.create_subscription(msg_type, topic, recorder._on_message, qos,
                                                      event_callbacks=quiet_events())
         recorder._unsubscribe = lambda: self.node.destroy_subscription(subscription)
+        self.recorders.append(recorder)
         return recorder
 
     def call(self, srv_type: Any, name: str, request: Any, timeout: float = 10.0,

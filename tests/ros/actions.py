@@ -74,3 +74,16 @@ def ready_client(session: RosSession, action_type: Any, name: str, timeout: floa
     client = ActionClient(session.node, action_type, name)
     wait_until_answering(session, client, timeout)
     return client
+
+
+def sim_now(client: RosSession, entity: str) -> float:
+    """The sim's time [s] now, asked of /sim (an entity's state is stamped when it is read).
+
+    A client's latest message of a topic can lag the sim by seconds on a loaded machine (a deep queue loses
+    nothing but is read late); a time read this way is at or after every request this client has had answered.
+    """
+    from sim_ros.conversions import seconds_of
+    from simulation_interfaces.srv import GetEntityState
+
+    response = client.call(GetEntityState, "/sim/get_entity_state", GetEntityState.Request(entity=entity), timeout=30.0)
+    return seconds_of(response.state.header.stamp)

@@ -15,7 +15,7 @@ import robot_models
 from sim_interfaces.action import NavigateToPose, Walk
 from sim_interfaces.srv import Push, Reset
 from sim_ros.conversions import seconds_of, yaw_of
-from tests.ros.actions import ready_client, result, send, wait_feedback
+from tests.ros.actions import ready_client, result, send, sim_now as sim_at, wait_feedback
 from tests.ros.processes import running
 
 pytestmark = pytest.mark.slow
@@ -48,17 +48,31 @@ def odom(client, g1):
     return recorder
 
 
-def reset(client, odom) -> None:
+def sim_now(client) -> float:
+    return sim_at(client, "g1")
+
+
+def caught_up(client, odom) -> float:
+    """The sim's time now, once this client's /odom has reached it."""
+    now = sim_now(client)
+    client.wait_for(lambda: seconds_of(odom.latest.header.stamp) >= now, 60.0, f"/odom at t={now:.3f} s")
+    return now
+
+
+def reset(client, odom) -> float:
     """Reset the sim and wait until the odometry this process holds is from after the reset (a loaded machine can
-    leave pre-reset messages in flight for a while)."""
+    leave pre-reset messages in flight for a while); returns the sim time of the reset."""
     response = client.call(Reset, "/sim/reset", Reset.Request())
     assert response.success, response.message
     client.wait_for(lambda: seconds_of(odom.latest.header.stamp) > response.sim_time, 30.0, "odometry after the reset")
+    return float(response.sim_time)
 
 
 def pace(odom_messages: list[Odometry], t0: float, t1: float) -> float:
     """Mean forward speed [m/s] between sim times t0 and t1, from positions."""
     window = [m for m in odom_messages if t0 <= seconds_of(m.header.stamp) <= t1]
+    assert len(window) >= 2 and seconds_of(window[-1].header.stamp) - seconds_of(window[0].header.stamp) > 0.8 * (t1 - t0), \
+        f"/odom covers [{t0:.3f}, {t1:.3f}] s"
     first, last = window[0], window[-1]
     return math.dist(xy(first), xy(last)) / (seconds_of(last.header.stamp) - seconds_of(first.header.stamp))
 
@@ -71,6 +85,7 @@ def test_walk_two_metres_forward_then_half_a_metre_back(client, walk, odom):
     outcome = result(client, sent, timeout=180.0)
     assert outcome.status == GoalStatus.STATUS_SUCCEEDED, outcome.result.error_msg
     assert outcome.result.final_distance == pytest.approx(2.0, rel=0.05)
+    caught_up(client, odom)
     moved = math.dist(start, xy(odom.latest))
     assert moved == pytest.approx(2.0, rel=0.05), "odometry agrees: the base moved 2 m"
     walked = [f.distance_walked for f in sent.feedback]
@@ -88,13 +103,13 @@ def test_walking_speed_changes_the_pace_mid_walk(client, walk, odom):
     try:
         sent = send(client, walk, Walk.Goal(distance=5.0))
         wait_feedback(client, sent, lambda f: seconds_of(f.elapsed) > 5.0, 120.0, "5 s of walking")
-        before = seconds_of(odom.latest.header.stamp)
+        before = caught_up(client, odom)  # at least 5 s into the walk
         slow = pace(odom.messages(), before - 2.5, before)
         ok, reason = client.set_parameter("locomotion", "walking_speed", 0.4)
         assert ok, reason
-        # The change is in force once the parameter service has answered: time the fast window from then, so a
-        # slow client (a loaded machine) cannot move the change into the window.
-        changed_at = seconds_of(odom.latest.header.stamp)
+        # The change is in force once the parameter service has answered: the fast window is timed from the sim's
+        # time read after that answer, so a slow client (a loaded machine) cannot move the change into the window.
+        changed_at = sim_now(client)
         client.wait_for(lambda: seconds_of(odom.latest.header.stamp) > changed_at + 4.0, 120.0, "4 s after the change")
         fast = pace(odom.messages(), changed_at + 2.0, changed_at + 4.0)
         assert slow == pytest.approx(0.2, abs=0.05)
@@ -115,10 +130,15 @@ def test_walking_speed_out_of_range_is_refused_with_the_range(client, g1):
 
 def test_cmd_vel_turns_the_robot_in_place_by_ninety_degrees(client, odom, g1):
     reset(client, odom)
+    caught_up(client, odom)
+    # The steering reads the newest odometry only (a queue of one, as a controller subscribes): a deep queue would
+    # hand a client that falls behind old headings, and it would stop turning late.
+    fresh = client.record(Odometry, "/odom", qos=1, keep=1)
+    client.wait_for(lambda: fresh.count > 0, 30.0, "/odom")
     publisher = client.node.create_publisher(Twist, "/cmd_vel", 10)
     start_yaw, start_xy = yaw(odom.latest), xy(odom.latest)
     command = Twist()
-    turned = lambda: abs(math.remainder(yaw(odom.latest) - start_yaw, 2 * math.pi))  # noqa: E731
+    turned = lambda: abs(math.remainder(yaw(fresh.latest) - start_yaw, 2 * math.pi))  # noqa: E731
     polled_at: list[float] = []
     try:
         def turning() -> bool:
@@ -134,7 +154,7 @@ def test_cmd_vel_turns_the_robot_in_place_by_ninety_degrees(client, odom, g1):
         client.wait_for(turning, 120.0, "a 90 degree turn", poll=0.05)
     finally:
         publisher.publish(Twist())
-    stop_time = seconds_of(odom.latest.header.stamp)
+    stop_time = sim_now(client)
     longest_gap = max(b - a for a, b in itertools.pairwise(polled_at))
 
     def still() -> bool:
@@ -142,6 +162,8 @@ def test_cmd_vel_turns_the_robot_in_place_by_ninety_degrees(client, odom, g1):
         return seconds_of(odom.latest.header.stamp) > stop_time + 3.0
 
     client.wait_for(still, 60.0, "the robot to stop", poll=0.05)
+    fresh.stop()
+    turned = lambda: abs(math.remainder(yaw(odom.latest) - start_yaw, 2 * math.pi))  # noqa: E731
     assert turned() == pytest.approx(math.radians(90), abs=math.radians(10)), (
         f"heading after stopping; the steering client's longest gap between commands was {longest_gap:.2f} s wall"
     )
@@ -159,7 +181,7 @@ def test_cancel_stops_the_walk_and_the_robot_stands(client, walk, odom):
     assert outcome.status == GoalStatus.STATUS_CANCELED
     assert outcome.result.error_code == Walk.Result.CANCELED
     assert 0.4 < outcome.result.final_distance < 2.0
-    t0 = seconds_of(odom.latest.header.stamp)
+    t0 = sim_now(client)
     client.wait_for(lambda: seconds_of(odom.latest.header.stamp) > t0 + 2.0, 60.0, "2 s after the cancel")
     assert pace(odom.messages(), t0 + 1.0, t0 + 2.0) < 0.03, "standing still"
     assert odom.latest.pose.pose.position.z > 0.6
@@ -207,6 +229,7 @@ def test_a_shove_knocks_the_walking_robot_over_and_after_a_reset_it_walks_again(
     start = xy(odom.latest)
     again = result(client, send(client, walk, Walk.Goal(distance=0.5, speed=0.3)), timeout=120.0)
     assert again.result.error_code == Walk.Result.SUCCESS, again.result.error_msg
+    caught_up(client, odom)
     assert math.dist(start, xy(odom.latest)) == pytest.approx(0.5, rel=0.1)
     assert odom.latest.pose.pose.position.z > 0.6, "standing after the walk"
 

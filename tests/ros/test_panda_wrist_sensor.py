@@ -40,7 +40,7 @@ def test_after_calibration_the_wrist_reads_the_weight_of_the_box_it_carries(clie
     against the sensor's noise, offset and drift. (Across the axis, the carry's accelerations show too.)"""
     with running(["bringup", "--robot", "panda", "--rtf", "2.0"]):
         pick_place = ready_client(client, PickPlace, "/pick_place", timeout=90.0)
-        wrench = client.record(WrenchStamped, "/wrist/wrench", keep=100_000)
+        wrench = client.record(WrenchStamped, "/wrist/wrench", qos=1000, keep=100_000)  # deep: a starved reader loses none
         client.wait_for(lambda: wrench.count >= 5, 90.0, "/wrist/wrench")
         answer = client.call(CalibrateHandSensors, "/calibrate_hand_sensors", CalibrateHandSensors.Request(), timeout=60.0)
         assert answer.success, answer.message
@@ -52,9 +52,15 @@ def test_after_calibration_the_wrist_reads_the_weight_of_the_box_it_carries(clie
         assert outcome.result.error_code == PickPlace.Result.SUCCESS, outcome.result.error_msg
 
         def axial_force(stages: tuple[int, ...]) -> float:
-            times = [seconds_of(f.object_pose.header.stamp) for f in sent.feedback if f.stage in stages]
-            assert times, f"feedback in stages {stages}"
-            forces = [m.wrench.force.z for m in wrench.messages() if times[0] <= seconds_of(m.header.stamp) <= times[-1]]
+            """Mean axial force from the stages' first feedback to the first feedback of a later stage (a new stage
+            is relayed at once, so its stamp ends the window even when the stages were shorter than a feedback
+            period)."""
+            stamped = [(seconds_of(f.object_pose.header.stamp), f.stage) for f in sent.feedback]
+            inside = [t for t, stage in stamped if stage in stages]
+            assert inside, f"feedback in stages {stages}"
+            after = [t for t, stage in stamped if t > inside[0] and stage not in stages]
+            end = after[0] if after else inside[-1]
+            forces = [m.wrench.force.z for m in wrench.messages() if inside[0] <= seconds_of(m.header.stamp) < end]
             assert len(forces) >= 10, f"{len(forces)} wrenches in stages {stages}"
             return float(np.mean(forces))
 

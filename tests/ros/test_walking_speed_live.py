@@ -16,7 +16,7 @@ from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 
 from sim_interfaces.action import Walk
-from tests.ros.actions import ready_client, result, send, wait_feedback
+from tests.ros.actions import ready_client, result, send, sim_now, wait_feedback
 from tests.ros.processes import running
 
 pytestmark = pytest.mark.slow
@@ -47,7 +47,6 @@ def pace(odom, t_from: float, t_to: float) -> float:
 
 
 def test_walking_speed_from_0_5_to_0_8_mid_walk(client):
-    # Real time: the client's latest /odom is then the sim's present, so the change is placed in sim time.
     with running(["bringup", "--robot", "g1", "--rtf", "1"]):
         walk = ready_client(client, Walk, "/walk", timeout=READY_S)
         set_walking_speed(client, 0.5)
@@ -56,15 +55,17 @@ def test_walking_speed_from_0_5_to_0_8_mid_walk(client):
         sent = send(client, walk, Walk.Goal(distance=14.0))  # speed 0: the walking_speed parameter's pace
         assert sent.handle.accepted
         wait_feedback(client, sent, lambda f: f.distance_walked > 1.5, READY_S, "the walk under way at 0.5 m/s")
-        changed = stamp(odom.latest)
+        # The change is placed in sim time by asking /sim before the request and after its answer: a client's
+        # latest /odom can lag the sim by seconds on a loaded machine.
+        asked = sim_now(client, "g1")
         set_walking_speed(client, 0.8)
+        changed = sim_now(client, "g1")
         client.wait_for(lambda: stamp(odom.latest) >= changed + 10.0 or sent.result_future().done(), READY_S,
                         "10 s of sim time after the change")
-        before = pace(odom, changed - 2.0, changed)
+        before = pace(odom, asked - 2.0, asked)
         after = pace(odom, changed + 2.0, changed + 4.0)
         # The gait overshoots the new pace by up to 3 % for the first ~6 s after the change reaches /sim (core
-        # runs: 0.826 over 2-6 s); the change reaches /sim up to ~2 s of sim time after ``changed`` on a loaded
-        # machine (the client's /odom lags, then a service round trip). Whole steps dominate a 4 s window.
+        # runs: 0.826 over 2-6 s). Whole steps dominate a 4 s window.
         steady = pace(odom, changed + 6.0, changed + 10.0)
         print(f"pace before {before:.3f}, 2-4 s after {after:.3f}, 6-10 s after {steady:.3f} m/s")
         assert before == pytest.approx(0.5, rel=0.05)
