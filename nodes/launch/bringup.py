@@ -1,6 +1,6 @@
 """All-in-one bringup: the sim node and every server that exists for the robot, as a launch file would.
 
-``bringup --robot g1|panda [--scene course] [--rtf X] [--paused]``. Each node runs in its own
+``bringup --robot g1|panda [--scene course|tables] [--rtf X] [--paused]``. Each node runs in its own
 process (so the physics thread never waits for a server's Python), with the same names and
 interfaces as when started one by one. Ctrl-C (or SIGTERM) stops them all.
 
@@ -29,7 +29,7 @@ from sim_ros.processes import ChildProcess
 def parse_args(argv: list[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog="bringup", description=__doc__.splitlines()[0])
     parser.add_argument("--robot", choices=robot_models.ROBOT_NAMES, default=robot_models.G1)
-    parser.add_argument("--scene", default="", help="scene variant (g1: open, course); default: the robot's own")
+    parser.add_argument("--scene", default="", help=f"scene variant ({robot_models.scenes_summary()}); default: the robot's own")
     parser.add_argument("--rtf", type=float, default=1.0, help="real-time factor; 0 = as fast as possible")
     parser.add_argument("--paused", action="store_true", help="start with the physics paused")
     parser.add_argument("--no-respawn", dest="respawn", action="store_false",
