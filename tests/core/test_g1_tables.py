@@ -8,7 +8,9 @@ import pytest
 import robot_models
 from robot_models import g1_tables
 from sim_bridge import Pose, Simulation
+from sim_bridge.controller import Slot
 from sim_bridge.entities import EntityKind, FixedEntityError, SceneEntities
+from sim_bridge.locomotion import LocomotionMode, WalkingController
 from sim_bridge.navigation import grid_from_obstacles, plan_path
 
 SETTLE_SECONDS = 2.0
@@ -104,3 +106,22 @@ def test_tables_and_objects_are_entities_with_bounds_and_the_objects_move(robot)
     np.testing.assert_allclose(entities.state("cube").pose.position, target, atol=1e-12)
     sim.step(round(0.5 / sim.control_timestep))
     np.testing.assert_allclose(entities.state("cube").pose.position, target, atol=MAX_OBJECT_DRIFT_M)
+
+
+def test_the_g1_walks_in_the_scene_its_controller_leaving_the_objects_out(robot):
+    """The whole-body QP works on the robot's dofs and mass; the objects' free joints are not the robot's."""
+    sim = Simulation(robot)
+    walker = WalkingController(sim.model, robot.biped)
+    sim.set_controller(Slot.LOCOMOTION, walker)
+    start = sim.base_state().pose.position.copy()
+    walker.set_velocity_command(0.0, 0.15, 0.0)  # to the left, away from both tables
+    for _ in range(round(3.0 / sim.control_timestep)):
+        sim.step(1)
+        assert not walker.status().fallen, walker.status().message
+    walker.set_velocity_command(0.0, 0.0, 0.0)
+    sim.step(round(3.0 / sim.control_timestep))
+    assert walker.status().mode is LocomotionMode.STANDING and walker.qp_fallback_count == 0
+    assert 0.25 < sim.base_state().pose.position[1] - start[1] < 0.7
+    for item in g1_tables.OBJECTS:
+        rest = np.asarray(g1_tables.object_rest_position(item))
+        assert np.linalg.norm(sim.body_pose(item.name).position - rest) < MAX_OBJECT_DRIFT_M
