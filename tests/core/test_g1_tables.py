@@ -8,6 +8,7 @@ import pytest
 import robot_models
 from robot_models import g1_tables
 from sim_bridge import Pose, Simulation
+from sim_bridge.arm import ArmController
 from sim_bridge.controller import Slot
 from sim_bridge.entities import EntityKind, FixedEntityError, SceneEntities
 from sim_bridge.locomotion import LocomotionMode, WalkingController
@@ -125,3 +126,18 @@ def test_the_g1_walks_in_the_scene_its_controller_leaving_the_objects_out(robot)
     for item in g1_tables.OBJECTS:
         rest = np.asarray(g1_tables.object_rest_position(item))
         assert np.linalg.norm(sim.body_pose(item.name).position - rest) < MAX_OBJECT_DRIFT_M
+
+
+def test_an_arm_reaches_in_the_scene_its_ik_leaving_the_objects_out(robot):
+    sim = Simulation(robot)
+    arm = ArmController(robot)
+    sim.set_controller(Slot.ARM, arm)
+    sim.step(125)
+    start = arm.status("right_arm").tool_pose
+    arm.set_target("right_arm", Pose(start.position + np.array([0.15, 0.05, 0.15]), start.orientation_wxyz), False, 0.15, 0.5)
+    for _ in range(round(6.0 / sim.control_timestep)):
+        sim.step(1)
+        if arm.status("right_arm").settled:
+            break
+    status = arm.status("right_arm")
+    assert status.settled and status.position_error <= 1e-3, status
