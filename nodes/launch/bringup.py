@@ -44,13 +44,12 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
 
 def commands_for(options: argparse.Namespace, ros_args: list[str]) -> list[list[str]]:
     """The executables to run, with their arguments."""
+    scene = ["-p", f"scene:={options.scene}"] if options.scene else []  # /sim's, and the servers' (goals name its objects)
     sim = ["sim_node", "--ros-args", "-p", f"robot:={options.robot}", "-p", f"real_time_factor:={float(options.rtf)}",
-           "-p", f"start_paused:={str(bool(options.paused)).lower()}"]
-    if options.scene:
-        sim += ["-p", f"scene:={options.scene}"]
-    servers = [["arm_server", "--ros-args", "-p", f"robot:={options.robot}"]]
+           "-p", f"start_paused:={str(bool(options.paused)).lower()}", *scene]
+    servers = [["arm_server", "--ros-args", "-p", f"robot:={options.robot}", *scene]]
     if robot_models.walks(options.robot):
-        servers.append(["locomotion_server", "--ros-args", "-p", f"robot:={options.robot}"])
+        servers.append(["locomotion_server", "--ros-args", "-p", f"robot:={options.robot}", *scene])
     sensors = robot_models.sensors_of(options.robot)
     if sensors.battery is not None:
         servers.append(["power_node", "--ros-args", "-p", f"robot:={options.robot}"])

@@ -263,6 +263,7 @@ def test_set_entity_state_moves_the_g1_base_and_it_stands_there(client):
 def test_the_g1_tables_scene_serves_its_tables_and_objects(client):
     """``scene:=tables``: objects on /objects and /tf, movable through the standard; tables static, on /map."""
     from nav_msgs.msg import OccupancyGrid
+    from rcl_interfaces.srv import GetParameters
     from rclpy.qos import DurabilityPolicy, QoSProfile
     from tf2_msgs.msg import TFMessage
 
@@ -308,6 +309,10 @@ def test_the_g1_tables_scene_serves_its_tables_and_objects(client):
         client.wait_for(lambda: abs(cube_y() - place.center_xy[1]) < 0.005, 30.0, "the cube on the second table on /objects")
         table = call(client, SetEntityState, "set_entity_state", entity="table_0", state=state, set_pose=True).result
         assert table.result == Result.RESULT_OPERATION_FAILED and "navigation map" in table.error_message
+        with running(["arm_server"]) as arm:  # no parameters: it asks /sim for its robot and scene
+            asked = GetParameters.Request(names=["robot", "scene"])
+            values = client.call(GetParameters, "/arm/get_parameters", asked, timeout=120.0).values
+            assert [v.string_value for v in values] == ["g1", "tables"], arm.output()
         assert process.alive(), process.output()
         for recording in (grid, published, tf):
             recording.stop()
