@@ -107,6 +107,9 @@ def test_tables_and_objects_are_entities_with_bounds_and_the_objects_move(robot)
     np.testing.assert_allclose(entities.state("cube").pose.position, target, atol=1e-12)
     sim.step(round(0.5 / sim.control_timestep))
     np.testing.assert_allclose(entities.state("cube").pose.position, target, atol=MAX_OBJECT_DRIFT_M)
+    sim.reset()  # the keyframe puts it back on the first table
+    np.testing.assert_allclose(entities.state("cube").pose.position, g1_tables.object_rest_position(g1_tables.CUBE),
+                               atol=1e-12)
 
 
 def test_the_g1_walks_in_the_scene_its_controller_leaving_the_objects_out(robot):
