@@ -5,7 +5,7 @@ The package only gathers the public names; the robots are registered in :mod:`ro
 
 from __future__ import annotations
 
-from robot_models.registry import G1, PANDA, ROBOT_NAMES, cameras_of, check_scene, load, sensors_of, walks
+from robot_models.registry import G1, PANDA, ROBOT_NAMES, cameras_of, check_scene, load, scenes_summary, sensors_of, walks
 from robot_models.spec import (
     ArmScene,
     GraspLimits,
@@ -20,5 +20,6 @@ from robot_models.spec import (
 
 __all__ = [
     "G1", "PANDA", "ROBOT_NAMES", "ArmScene", "GraspLimits", "JointLimits", "Obstacle", "RobotModelError", "RobotSpec",
-    "UnknownRobotError", "UnknownSceneError", "WalkingLimits", "cameras_of", "check_scene", "load", "sensors_of", "walks",
+    "UnknownRobotError", "UnknownSceneError", "WalkingLimits", "cameras_of", "check_scene", "load", "scenes_summary",
+    "sensors_of", "walks",
 ]

@@ -22,6 +22,7 @@ import mujoco
 import numpy as np
 
 import robot_models.g1_constants as names
+import robot_models.g1_tables as tables
 from robot_models.cameras import OPTICAL_IN_BODY_QUAT, CameraLayout, add_optical_camera, prepare_scene_for_cameras
 from robot_models.g1_gait import BIPED, WALKING
 from robot_models.g1_layout import CAMERAS, SENSORS
@@ -254,7 +255,8 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
     """Build and compile the G1 scene.
 
     Args:
-        scene: ``"open"`` (empty floor) or ``"course"`` (static obstacles to walk around).
+        scene: ``"open"`` (empty floor), ``"course"`` (static obstacles to walk around) or ``"tables"``
+            (two tables, objects on the first: :mod:`robot_models.g1_tables`).
 
     Raises:
         UnknownSceneError: another scene name.
@@ -263,6 +265,9 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
         raise UnknownSceneError(f"unknown scene {scene!r} for {names.ROBOT_NAME}; scenes: {', '.join(names.SCENES)}")
     spec = build_spec()
     obstacles = _add_obstacles(spec) if scene == "course" else ()
+    objects: tuple[str, ...] = ()
+    if scene == names.TABLES_SCENE:
+        obstacles, objects = tables.add_tables_and_objects(spec)
     model = spec.compile()
     qpos = _stand_qpos(model)
     ctrl = np.array([qpos[model.joint(j).qposadr[0]] for j in names.ALL_JOINTS])
@@ -291,6 +296,7 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
         joint_limits=joint_limits_of(model, names.ALL_JOINTS),
         control_decimation=CONTROL_DECIMATION,
         scene=scene,
+        objects=objects,
         obstacles=obstacles,
         arm_scene=_arm_scene(model),
         walking=WALKING,

@@ -105,8 +105,10 @@ HEAD_CAMERA_LENS_IN_MOUNT: Final = (0.0125, 0.0, 0.0)
 HEAD_CAMERA_HOUSING_HALF_SIZE: Final = (0.0125, 0.045, 0.0125)  # a D435: 90 x 25 x 25 mm
 
 # Scenes. "open": the robot on an empty floor. "course": a few static boxes to walk around,
-# as (name, centre x, centre y, half size x, half size y, height) [m].
-SCENES: Final = ("open", "course")
+# as (name, centre x, centre y, half size x, half size y, height) [m]. "tables": two tables and objects
+# to carry (robot_models.g1_tables).
+TABLES_SCENE: Final = "tables"
+SCENES: Final = ("open", "course", TABLES_SCENE)
 DEFAULT_SCENE: Final = "open"
 COURSE_OBSTACLES: Final = (
     ("obstacle_wall", 1.6, 0.0, 0.15, 0.9, 0.8),

@@ -128,6 +128,11 @@ def check_scene(name: str, scene: str | None = None) -> None:
         raise UnknownSceneError(f"unknown scene {scene!r} for {entry.name}; scenes: {', '.join(entry.scenes)}")
 
 
+def scenes_summary() -> str:
+    """Every robot's scenes, for help texts: ``"g1: open, course, tables; panda: table"``."""
+    return "; ".join(f"{name}: {', '.join(_ROBOTS[name].scenes)}" for name in ROBOT_NAMES)
+
+
 def walks(name: str) -> bool:
     """Whether the named robot walks (has feet sites and walking limits), without building its model.
 

@@ -39,14 +39,16 @@ class JointLimits:
 
 @dataclass(frozen=True)
 class Obstacle:
-    """A static box standing on the floor, for navigation.
+    """A static part of the scene standing on the floor, whose box footprint is on the navigation map.
 
     Attributes:
-        name: geom name in the model.
+        name: name of its main geom in the model (its pose is the obstacle's).
         center_xy: centre of its footprint in the world frame [m].
         half_size_xy: half lengths of its footprint along its own axes [m].
         height: [m].
         yaw: rotation about world z [rad].
+        geoms: every geom it is made of when more than the one named ``name`` (e.g. a table's top
+            and legs); empty = just that one.
     """
 
     name: str
@@ -54,6 +56,16 @@ class Obstacle:
     half_size_xy: tuple[float, float]
     height: float
     yaw: float = 0.0
+    geoms: tuple[str, ...] = ()
+
+    @property
+    def geom_names(self) -> tuple[str, ...]:
+        """The geoms it is made of, its main geom first."""
+        return self.geoms or (self.name,)
+
+    def __post_init__(self) -> None:
+        if self.geoms and self.geoms[0] != self.name:
+            raise ValueError(f"obstacle {self.name!r}: its geoms must start with its main geom, got {self.geoms}")
 
 
 class UnknownSceneError(RobotModelError, KeyError):

@@ -89,10 +89,11 @@ class EntityState:
 
 @dataclass(frozen=True)
 class _Handle:
-    body_id: int  # -1 for an obstacle (a geom of the world body)
-    geom_id: int  # the obstacle's geom, else -1
+    body_id: int  # -1 for an obstacle (geoms of the world body)
+    geom_id: int  # the obstacle's main geom (its pose is the obstacle's), else -1
     qpos_adr: int  # free joint's qpos address, -1 when fixed
     dof_adr: int
+    geom_ids: tuple[int, ...] = ()  # every geom of the obstacle (its bounds), its main geom first
 
 
 class SceneEntities:
@@ -133,11 +134,11 @@ class SceneEntities:
                                    movable=False))
             handles[name] = _Handle(body, -1, -1, -1)
         for obstacle in robot.obstacles:
-            geom = model.geom(obstacle.name).id
+            geoms = tuple(model.geom(name).id for name in obstacle.geom_names)
             entities.append(Entity(obstacle.name, EntityKind.OBSTACLE,
                                    f"static obstacle {obstacle.name} ({obstacle.height:.2f} m high, on the navigation map)",
                                    ("obstacle", "static"), movable=False))
-            handles[obstacle.name] = _Handle(-1, geom, -1, -1)
+            handles[obstacle.name] = _Handle(-1, geoms[0], -1, -1, geoms)
         self.entities: tuple[Entity, ...] = tuple(entities)
         self._by_name = {entity.name: entity for entity in entities}
         self._handles = handles
@@ -259,7 +260,7 @@ class SceneEntities:
         handle = self._handles[name]
         model = self._sim.model
         if handle.geom_id >= 0:
-            return [handle.geom_id]
+            return list(handle.geom_ids)
         root = int(model.body_rootid[handle.body_id])
         if self.get(name).kind is EntityKind.ROBOT:
             bodies = {b for b in range(1, model.nbody) if int(model.body_rootid[b]) == root}

@@ -270,6 +270,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     up = sub.add_parser("up", help="bring up /sim and every server for the robot (bringup)")
     up.add_argument("--robot", choices=robot_models.ROBOT_NAMES, default=robot_models.G1)
+    up.add_argument("--scene", default="", help=f"scene variant ({robot_models.scenes_summary()}); default: the robot's own")
     up.add_argument("--rtf", type=float, default=1.0, help="real-time factor; 0 = as fast as possible")
     walk = sub.add_parser("walk", help="walk a distance [m] straight ahead (negative = backwards)")
     walk.add_argument("distance", type=float)
@@ -317,7 +318,8 @@ def main(argv: list[str] | None = None) -> int:
     options = build_parser().parse_args(argv)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     if options.command == "up":
-        args = ["bringup", "--robot", options.robot, "--rtf", f"{options.rtf:g}"]
+        args = ["bringup", "--robot", options.robot, *(["--scene", options.scene] if options.scene else []),
+                "--rtf", f"{options.rtf:g}"]
         print(f"running: {' '.join(args)}  (Ctrl-C stops)", flush=True)
         os.execv(str(BIN / "bringup"), args)
     if options.command == "param":

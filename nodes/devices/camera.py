@@ -71,7 +71,7 @@ class CameraNode(DeviceNode):
 
 def main(args: list[str] | None = None) -> int:
     """Console entry point: ``camera_node`` (asks /sim for its robot)."""
-    return spin_server(lambda robot, overrides: CameraNode(robot, parameter_overrides=overrides), NODE_NAME, args)
+    return spin_server(lambda robot, _scene, overrides: CameraNode(robot, parameter_overrides=overrides), NODE_NAME, args)
 
 
 if __name__ == "__main__":

@@ -192,7 +192,7 @@ class HandSensorsNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Console entry point: ``hand_sensors`` (asks /sim for its robot)."""
-    return spin_server(lambda robot, overrides: HandSensorsNode(robot, parameter_overrides=overrides), NODE_NAME, args)
+    return spin_server(lambda robot, _scene, overrides: HandSensorsNode(robot, parameter_overrides=overrides), NODE_NAME, args)
 
 
 if __name__ == "__main__":

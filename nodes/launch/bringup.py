@@ -1,6 +1,6 @@
 """All-in-one bringup: the sim node and every server that exists for the robot, as a launch file would.
 
-``bringup --robot g1|panda [--scene course] [--rtf X] [--paused]``. Each node runs in its own
+``bringup --robot g1|panda [--scene course|tables] [--rtf X] [--paused]``. Each node runs in its own
 process (so the physics thread never waits for a server's Python), with the same names and
 interfaces as when started one by one. Ctrl-C (or SIGTERM) stops them all.
 
@@ -29,7 +29,7 @@ from sim_ros.processes import ChildProcess
 def parse_args(argv: list[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog="bringup", description=__doc__.splitlines()[0])
     parser.add_argument("--robot", choices=robot_models.ROBOT_NAMES, default=robot_models.G1)
-    parser.add_argument("--scene", default="", help="scene variant (g1: open, course); default: the robot's own")
+    parser.add_argument("--scene", default="", help=f"scene variant ({robot_models.scenes_summary()}); default: the robot's own")
     parser.add_argument("--rtf", type=float, default=1.0, help="real-time factor; 0 = as fast as possible")
     parser.add_argument("--paused", action="store_true", help="start with the physics paused")
     parser.add_argument("--no-respawn", dest="respawn", action="store_false",
@@ -44,13 +44,12 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
 
 def commands_for(options: argparse.Namespace, ros_args: list[str]) -> list[list[str]]:
     """The executables to run, with their arguments."""
+    scene = ["-p", f"scene:={options.scene}"] if options.scene else []  # /sim's, and the servers' (goals name its objects)
     sim = ["sim_node", "--ros-args", "-p", f"robot:={options.robot}", "-p", f"real_time_factor:={float(options.rtf)}",
-           "-p", f"start_paused:={str(bool(options.paused)).lower()}"]
-    if options.scene:
-        sim += ["-p", f"scene:={options.scene}"]
-    servers = [["arm_server", "--ros-args", "-p", f"robot:={options.robot}"]]
+           "-p", f"start_paused:={str(bool(options.paused)).lower()}", *scene]
+    servers = [["arm_server", "--ros-args", "-p", f"robot:={options.robot}", *scene]]
     if robot_models.walks(options.robot):
-        servers.append(["locomotion_server", "--ros-args", "-p", f"robot:={options.robot}"])
+        servers.append(["locomotion_server", "--ros-args", "-p", f"robot:={options.robot}", *scene])
     sensors = robot_models.sensors_of(options.robot)
     if sensors.battery is not None:
         servers.append(["power_node", "--ros-args", "-p", f"robot:={options.robot}"])

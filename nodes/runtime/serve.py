@@ -1,4 +1,4 @@
-"""The ``main`` of every node but ``/sim``: find the robot (a parameter, or ask /sim), build the node, spin it."""
+"""The ``main`` of every node but ``/sim``: find the robot and its scene (parameters, or ask /sim), build the node, spin it."""
 
 from __future__ import annotations
 
@@ -17,7 +17,9 @@ from nodes.runtime.parameters import ParameterSpec, StartupError, declare, guard
 from nodes.runtime.sim_link import robot_of_sim, sim_time_overrides
 from nodes.runtime.startup import StopRequest, bounded_cleanup, end_process, fail, help_requested, init_ros, program_name
 
-NodeFactory = Callable[[str, list[Parameter]], Node]  # (robot, parameter overrides) -> the node
+NodeFactory = Callable[[str, str, list[Parameter]], Node]  # (robot, scene ("" = its default), parameter overrides) -> the node
+SCENE_PARAMETER = ParameterSpec("scene", "", "scene of the running /sim (empty = the one /sim reports when asked for "
+                                "its robot, else the robot's default)", read_only=True)
 BeforeExit = Callable[[Node, Executor], None]  # runs while the context is still up, before the node is destroyed
 
 
@@ -55,8 +57,12 @@ def _serve(node_factory: NodeFactory, node_name: str, argv: list[str], before_ex
     overrides = sim_time_overrides(argv)
     probe = Node(f"{node_name}_setup", parameter_overrides=overrides)
     try:
-        declare(probe, (ParameterSpec("robot", "", "robot of the running /sim (empty = ask /sim)", read_only=True),))
-        robot = str(probe.get_parameter("robot").value) or robot_of_sim(probe)
+        declare(probe, (ParameterSpec("robot", "", "robot of the running /sim (empty = ask /sim)", read_only=True),
+                        SCENE_PARAMETER))
+        robot, scene = str(probe.get_parameter("robot").value), str(probe.get_parameter("scene").value)
+        if not robot:
+            robot, scene_of_sim = robot_of_sim(probe)
+            scene = scene or scene_of_sim
     except RuntimeError as error:
         probe.get_logger().fatal(str(error))
         rclpy.try_shutdown()
@@ -69,7 +75,7 @@ def _serve(node_factory: NodeFactory, node_name: str, argv: list[str], before_ex
     stop = StopRequest.install()
     map_large_buffers()
     try:
-        node = node_factory(robot, overrides)
+        node = node_factory(robot, scene, overrides)
     except robot_models.RobotModelError as error:
         raise StartupError(str(error)) from None
     release_build_memory()

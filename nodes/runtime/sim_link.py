@@ -18,8 +18,9 @@ def sim_time_overrides(args: list[str] | None) -> list[Parameter]:
     return [] if given else [Parameter("use_sim_time", value=True)]
 
 
-def robot_of_sim(node: Node, timeout_s: float = 30.0) -> str:
-    """Ask ``/sim`` which robot it simulates (its read-only ``robot`` parameter), waiting for /sim to come.
+def robot_of_sim(node: Node, timeout_s: float = 30.0) -> tuple[str, str]:
+    """Ask ``/sim`` which robot it simulates and in which scene (its read-only ``robot`` and ``scene``
+    parameters; the scene is "" for the robot's default), waiting for /sim to come.
 
     A server started before the sim waits for it as long as it takes (Ctrl-C stops it), and says so
     every ``SIM_WAIT_LOG_S``. Call from ``main`` before spinning, never from a callback.
@@ -38,11 +39,12 @@ def robot_of_sim(node: Node, timeout_s: float = 30.0) -> str:
                                       "-p robot:=NAME to serve without asking it")
         if waited:
             node.get_logger().info(f"/{SIM_NODE} is up after {waited:.0f} s")
-        future = client.call_async(GetParameters.Request(names=["robot"]))
+        future = client.call_async(GetParameters.Request(names=["robot", "scene"]))
         executor.spin_until_future_complete(future, timeout_sec=timeout_s)
-        if not future.done() or not future.result().values:
-            raise RuntimeError(f"/{SIM_NODE} did not report its robot parameter")
-        return str(future.result().values[0].string_value)
+        if not future.done() or len(future.result().values) != 2:
+            raise RuntimeError(f"/{SIM_NODE} did not report its robot and scene parameters")
+        robot, scene = future.result().values
+        return str(robot.string_value), str(scene.string_value)
     finally:
         executor.remove_node(node)
         node.destroy_client(client)

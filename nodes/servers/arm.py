@@ -19,7 +19,7 @@ from sensor_msgs.msg import JointState
 
 import robot_models
 from nodes.runtime.parameters import ParameterSpec, declare
-from nodes.runtime.serve import spin_server
+from nodes.runtime.serve import SCENE_PARAMETER, spin_server
 from nodes.runtime.startup import help_text
 from nodes.runtime.streams import OnDemandTopic
 from nodes.servers.actions import ARM_ACTIONS
@@ -69,10 +69,12 @@ def parameters(robot: robot_models.RobotSpec) -> tuple[ParameterSpec, ...]:
 class ArmServer(Node):
     """Serves ``/move_arm``, ``/pick_place`` and ``/arm/compute_ik`` for the robot of ``/sim``."""
 
-    def __init__(self, robot: str, **kwargs: Any) -> None:
+    def __init__(self, robot: str, scene: str = "", **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
-        self.robot = robot_models.load(robot)
-        declare(self, (ParameterSpec("robot", robot, "robot whose arms are served", read_only=True), *parameters(self.robot)))
+        self.robot = robot_models.load(robot, scene or None)  # the scene's objects: goals may name them
+        declare(self, (ParameterSpec("robot", robot, "robot whose arms are served", read_only=True),
+                       ParameterSpec("scene", scene, "scene of /sim (its objects); empty = the robot's default", read_only=True),
+                       *parameters(self.robot)))
         self.kinematics = ArmKinematics(self.robot)
         self.arms = tuple(self.kinematics.arms)
         self._servers = skill_servers(self, self.robot, ACTIONS,
@@ -149,7 +151,8 @@ class ArmServer(Node):
 def help_page(program: str) -> str:
     """``arm_server --help``: what it serves and its parameters (the Panda's defaults)."""
     robot = robot_models.load(robot_models.PANDA)
-    specs = (ParameterSpec("robot", "", "robot of the running /sim (empty = ask /sim)", read_only=True), *parameters(robot))
+    specs = (ParameterSpec("robot", "", "robot of the running /sim (empty = ask /sim)", read_only=True), SCENE_PARAMETER,
+             *parameters(robot))
     return help_text(program, NODE_NAME, """\
 The /arm node: the MoveArm (/move_arm) and PickPlace (/pick_place) action servers and the
 /arm/compute_ik service, for the Panda or the G1's arms. The actions run as skills inside /sim's
@@ -159,7 +162,7 @@ control step; start the sim node first (it waits for /sim up to 30 s and asks it
 
 def main(args: list[str] | None = None) -> int:
     """Console entry point: ``arm_server [--ros-args -p robot:=panda]``."""
-    return spin_server(lambda robot, overrides: ArmServer(robot, parameter_overrides=overrides), NODE_NAME, args,
+    return spin_server(lambda robot, scene, overrides: ArmServer(robot, scene, parameter_overrides=overrides), NODE_NAME, args,
                        help_page, end_goals_before_exit)
 
 

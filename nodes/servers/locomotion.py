@@ -16,7 +16,7 @@ from rclpy.parameter import Parameter
 
 import robot_models
 from nodes.runtime.parameters import ParameterSpec, StartupError, declare
-from nodes.runtime.serve import spin_server
+from nodes.runtime.serve import SCENE_PARAMETER, spin_server
 from nodes.runtime.startup import help_text
 from nodes.servers.actions import LOCOMOTION_ACTIONS
 from nodes.servers.reset_pose import ResetPoseService
@@ -49,13 +49,15 @@ def parameters(robot: robot_models.RobotSpec) -> tuple[ParameterSpec, ...]:
 class LocomotionServer(Node):
     """Serves ``/walk`` and ``/navigate_to_pose`` for the G1 of ``/sim``."""
 
-    def __init__(self, robot: str, **kwargs: Any) -> None:
+    def __init__(self, robot: str, scene: str = "", **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
-        spec = robot_models.load(robot)
+        spec = robot_models.load(robot, scene or None)  # the scene's objects: goals may name them as frames
         if spec.walking is None:
             walkers = [name for name in robot_models.ROBOT_NAMES if robot_models.load(name).walking is not None]
             raise StartupError(f"robot {robot!r} cannot walk; walking robots: {', '.join(walkers)}")
-        declare(self, (ParameterSpec("robot", robot, "robot whose legs are served", read_only=True), *parameters(spec)))
+        declare(self, (ParameterSpec("robot", robot, "robot whose legs are served", read_only=True),
+                       ParameterSpec("scene", scene, "scene of /sim (its objects); empty = the robot's default", read_only=True),
+                       *parameters(spec)))
         self._servers = skill_servers(self, spec, ACTIONS,
                                       self._settings, lambda: 1.0 / self._param("feedback_rate"))
         self.add_post_set_parameters_callback(self._on_parameters)
@@ -78,7 +80,8 @@ class LocomotionServer(Node):
 def help_page(program: str) -> str:
     """``locomotion_server --help``: what it serves and its parameters (ranges of the G1)."""
     robot = robot_models.load(robot_models.G1)
-    specs = (ParameterSpec("robot", "", "robot of the running /sim (empty = ask /sim)", read_only=True), *parameters(robot))
+    specs = (ParameterSpec("robot", "", "robot of the running /sim (empty = ask /sim)", read_only=True), SCENE_PARAMETER,
+             *parameters(robot))
     return help_text(program, NODE_NAME, """\
 The /locomotion node: the Walk (/walk) and NavigateToPose (/navigate_to_pose) action servers of a
 walking robot, and the /reset_pose service (std_srvs/Trigger). All run as skills inside /sim's
@@ -88,8 +91,8 @@ simulates).""", specs)
 
 def main(args: list[str] | None = None) -> int:
     """Console entry point: ``locomotion_server`` (asks /sim for its robot)."""
-    return spin_server(lambda robot, overrides: LocomotionServer(robot, parameter_overrides=overrides), NODE_NAME, args,
-                       help_page, end_goals_before_exit)
+    return spin_server(lambda robot, scene, overrides: LocomotionServer(robot, scene, parameter_overrides=overrides),
+                       NODE_NAME, args, help_page, end_goals_before_exit)
 
 
 if __name__ == "__main__":

@@ -192,7 +192,8 @@ def _build_move(goal: MoveArm.Goal, settings: Mapping[str, float], context: Skil
 
 def _validate_pick(goal: PickPlace.Goal, robot: RobotSpec) -> str:
     if not robot.objects or robot.grasp is None:
-        raise InvalidGoalError(f"robot {robot.name!r} has no objects to pick")
+        raise InvalidGoalError(f"robot {robot.name!r} has " + ("no grippers to pick objects with" if robot.objects
+                                                                 else "no objects to pick"))
     arm = arm_name(goal.end_effector, robot)
     numbers = {"grasp_force": goal.grasp_force, "approach_height": goal.approach_height,
                "lift_height": goal.lift_height, "timeout": goal.timeout}

@@ -96,7 +96,7 @@ class InLoopPlugins:
             self.arms = ArmController(sim.robot)
             context.arms = self.arms
             inner: ArmController | PickPlace = self.arms
-            if sim.robot.objects:
+            if sim.robot.objects and sim.robot.grasp is not None:  # objects and grippers to pick them with
                 context.pick_place = inner = PickPlace(self.arms)
             arms = SkillHost(inner)  # MoveArm and PickPlace run in front of the arm controller; one goal per arm
             sim.set_controller(Slot.ARM, arms)

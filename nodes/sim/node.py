@@ -51,7 +51,7 @@ YIELD_EVERY_S = 0.002  # [s of wall time] the physics thread lets waiting servic
 PARAMETERS = (
     ParameterSpec("robot", robot_models.G1, f"robot scene to simulate, one of: {', '.join(robot_models.ROBOT_NAMES)}",
                   read_only=True),
-    ParameterSpec("scene", "", "scene variant (g1: open, course; panda: table); empty = the robot's default", read_only=True),
+    ParameterSpec("scene", "", f"scene variant ({robot_models.scenes_summary()}); empty = the robot's default", read_only=True),
     ParameterSpec("autostart", True, "configure and activate the lifecycle node on start", read_only=True),
     ParameterSpec("start_paused", False, "start with the physics paused (use ~/resume or ~/step)", read_only=True),
     ParameterSpec("real_time_factor", 1.0, "sim seconds per wall second; 0 = as fast as possible", 0.0, 1000.0),

@@ -46,6 +46,7 @@ from sim_bridge.locomotion.wbc_layout import (
     block,
     clip,
     friction_pyramids,
+    robot_mass,
     supports,
 )
 from sim_bridge.locomotion.wbc_tasks import N_TASK, MotionTasks
@@ -109,8 +110,8 @@ class WholeBodyQP:
 
     def __init__(self, model: mujoco.MjModel, biped: BipedDescription) -> None:
         self.nv = model.nv
-        self.mass = float(np.sum(model.body_mass))
         self.pelvis = model.body(biped.base_body).id
+        self.mass = robot_mass(model, self.pelvis)  # the objects of the scene are not the robot's
         self.torso = model.body(biped.torso_body).id
         self.joints = joints = JointLayout.of(model, biped)
         self.feet = FootLayout.of(model, biped)

@@ -22,6 +22,18 @@ FORCE_BLOCK = 2 * CORNERS_PER_FOOT * 3  # contact force variables: 3 per sole co
 N_FRICTION = 4 * 2 * CORNERS_PER_FOOT  # friction pyramid rows: 4 per corner
 
 
+def robot_dofs(model: mujoco.MjModel, base_body: int) -> np.ndarray:
+    """The dofs of the robot whose base is ``base_body``: those of its kinematic tree, in order (not the objects')."""
+    root = model.body_rootid[base_body]
+    return np.flatnonzero(model.body_rootid[model.dof_bodyid] == root)
+
+
+def robot_mass(model: mujoco.MjModel, base_body: int) -> float:
+    """Mass of the robot whose base is ``base_body``: its kinematic tree's [kg] (not the objects')."""
+    # Summed over every body with the others' zeroed: without objects, the very sum of all bodies' masses.
+    return float(np.sum(np.where(model.body_rootid == model.body_rootid[base_body], model.body_mass, 0.0)))
+
+
 def as_index(indices: np.ndarray) -> slice | np.ndarray:
     """A slice when the indices are consecutive (indexing then gives a view, not a copy), else the indices."""
     if len(indices) and np.array_equal(indices, np.arange(indices[0], indices[0] + len(indices))):
@@ -75,16 +87,18 @@ class JointLayout:
         """Resolve the biped's joints in ``model``.
 
         Raises:
-            ValueError: the floating base, motor and servo joints do not cover every dof exactly once.
+            ValueError: the floating base, motor and servo joints do not cover every dof of the robot
+                (the base body's tree) exactly once; other free bodies of the scene (objects) are left out.
         """
         motors, servos = biped.motor_joints, biped.servo_joints
         motor_dofs = np.array([model.joint(j).dofadr[0] for j in motors])
         servo_dofs = np.array([model.joint(j).dofadr[0] for j in servos])
-        base_dof = int(model.jnt_dofadr[model.body_jntadr[model.body(biped.base_body).id]])
+        base = model.body(biped.base_body).id
+        base_dof = int(model.jnt_dofadr[model.body_jntadr[base]])
         base_dofs = np.arange(base_dof, base_dof + 6)
         eliminated = np.concatenate([base_dofs, servo_dofs])
-        if sorted(np.concatenate([eliminated, motor_dofs]).tolist()) != list(range(model.nv)):
-            raise ValueError("the floating base, motor and servo joints must cover every dof exactly once")
+        if sorted(np.concatenate([eliminated, motor_dofs]).tolist()) != robot_dofs(model, base).tolist():
+            raise ValueError("the floating base, motor and servo joints must cover every dof of the robot exactly once")
         return cls(
             motor_dofs=motor_dofs,
             motor_qpos=np.array([model.joint(j).qposadr[0] for j in motors]),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -10,6 +11,7 @@ from rclpy.action import ActionClient
 
 from sim_client import RosSession
 from sim_client.actions import wait_until_answering
+from sim_interfaces.action import NavigateToPose
 
 
 @dataclass
@@ -87,3 +89,12 @@ def sim_now(client: RosSession, entity: str) -> float:
 
     response = client.call(GetEntityState, "/sim/get_entity_state", GetEntityState.Request(entity=entity), timeout=30.0)
     return seconds_of(response.state.header.stamp)
+
+
+def nav_goal(x: float, y: float, yaw: float = 0.0) -> NavigateToPose.Goal:
+    """A NavigateToPose goal to (x, y) [m] facing ``yaw`` [rad], in the world frame."""
+    goal = NavigateToPose.Goal()
+    goal.pose.header.frame_id = "world"
+    goal.pose.pose.position.x, goal.pose.pose.position.y = x, y
+    goal.pose.pose.orientation.z, goal.pose.pose.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
+    return goal

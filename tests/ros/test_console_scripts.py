@@ -47,6 +47,7 @@ def test_node_help_lists_parameters_with_defaults_and_ranges():
     (("arm_server", "--ros-args", "-p", "robot:=panda", "-p", "max_velocity_scaling:=-1.0"),
      ("max_velocity_scaling", "-1.0", "from")),
     (("arm_server", "--ros-args", "-p", "robot:=atlas"), ("unknown robot 'atlas'", "g1, panda")),
+    (("arm_server", "--ros-args", "-p", "robot:=g1", "-p", "scene:=moon"), ("unknown scene 'moon'", "open, course, tables")),
     (("sim_node", "--ros-args", "-p", "real_time_factor:=-1.0"), ("real_time_factor", "-1.0", "from 0 to 1000")),
     (("sim_node", "--ros-args", "-p", "robot:=atlas"), ("cannot configure /sim", "unknown robot 'atlas'", "g1, panda")),
     (("sim_node", "--ros-args", "-p", "gait.step_duration:=9.0"), ("gait.step_duration", "9.0", "from")),

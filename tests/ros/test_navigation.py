@@ -10,18 +10,10 @@ from action_msgs.msg import GoalStatus
 from nav_msgs.msg import OccupancyGrid
 
 from sim_interfaces.action import NavigateToPose
-from tests.ros.actions import ready_client, result, send
+from tests.ros.actions import nav_goal, ready_client, result, send
 from tests.ros.processes import running
 
 pytestmark = pytest.mark.slow
-
-
-def nav_goal(x: float, y: float, yaw: float = 0.0) -> NavigateToPose.Goal:
-    goal = NavigateToPose.Goal()
-    goal.pose.header.frame_id = "world"
-    goal.pose.pose.position.x, goal.pose.pose.position.y = x, y
-    goal.pose.pose.orientation.z, goal.pose.pose.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
-    return goal
 
 
 @pytest.fixture(scope="module")

@@ -260,6 +260,64 @@ def test_set_entity_state_moves_the_g1_base_and_it_stands_there(client):
         assert process.alive(), process.output()
 
 
+def test_the_g1_tables_scene_serves_its_tables_and_objects(client):
+    """``scene:=tables``: objects on /objects and /tf, movable through the standard; tables static, on /map."""
+    from nav_msgs.msg import OccupancyGrid
+    from rcl_interfaces.srv import GetParameters
+    from rclpy.qos import DurabilityPolicy, QoSProfile
+    from tf2_msgs.msg import TFMessage
+
+    from robot_models import g1_tables
+
+    objects = ("box", "cube", "can")
+    with running(["sim_node", "--ros-args", "-p", "robot:=g1", "-p", "scene:=tables"]) as process:
+        grid = client.record(OccupancyGrid, "/map", QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        published = client.record(ObjectStates, "/objects", keep=100)
+        tf = client.record(TFMessage, "/tf", keep=2000)
+        static = EntityCategory(category=EntityCategory.CATEGORY_STATIC_OBJECT)
+        assert list(call(client, GetEntities, "get_entities", filters=EntityFilters()).entities) == [
+            "g1", *objects, "table_0", "table_1"]
+        assert list(call(client, GetEntities, "get_entities", filters=EntityFilters(categories=[static])).entities) == [
+            "table_0", "table_1"]
+        bounds = call(client, GetEntityBounds, "get_entity_bounds", entity="table_1").bounds
+        assert bounds.type == Bounds.TYPE_BOX and bounds.points[1].z - bounds.points[0].z == pytest.approx(0.75, abs=1e-6)
+        cube = call(client, GetEntityBounds, "get_entity_bounds", entity="cube").bounds
+        assert cube.points[1].x - cube.points[0].x == pytest.approx(0.055, abs=1e-6)
+
+        client.wait_for(lambda: published.latest is not None, 60.0, "/objects")
+        assert tuple(published.latest.names) == objects
+        client.wait_for(lambda: {t.child_frame_id for m in tf.messages() for t in m.transforms} >= set(objects), 30.0,
+                        "world -> object transforms on /tf")
+        client.wait_for(lambda: grid.count > 0, 90.0, "/map")  # latched: comes at discovery, slow on a loaded machine
+        info = grid.latest.info
+        for table in g1_tables.TABLES:
+            x, y = table.center_xy
+            column = int((x - info.origin.position.x) / info.resolution)
+            row = int((y - info.origin.position.y) / info.resolution)
+            assert grid.latest.data[row * info.width + column] > 50, f"{table.name} is an obstacle on /map"
+
+        state = call(client, GetEntityState, "get_entity_state", entity="cube").state
+        place = g1_tables.PLACE_TABLE
+        state.pose.position = Point(x=place.center_xy[0], y=place.center_xy[1], z=place.top_z + 0.03)
+        moved = call(client, SetEntityState, "set_entity_state", entity="cube", state=state, set_pose=True).result
+        assert moved.result == OK, moved.error_message
+
+        def cube_y() -> float:
+            latest = published.latest
+            return latest.poses[list(latest.names).index("cube")].position.y
+
+        client.wait_for(lambda: abs(cube_y() - place.center_xy[1]) < 0.005, 30.0, "the cube on the second table on /objects")
+        table = call(client, SetEntityState, "set_entity_state", entity="table_0", state=state, set_pose=True).result
+        assert table.result == Result.RESULT_OPERATION_FAILED and "navigation map" in table.error_message
+        with running(["arm_server"]) as arm:  # no parameters: it asks /sim for its robot and scene
+            asked = GetParameters.Request(names=["robot", "scene"])
+            values = client.call(GetParameters, "/arm/get_parameters", asked, timeout=120.0).values
+            assert [v.string_value for v in values] == ["g1", "tables"], arm.output()
+        assert process.alive(), process.output()
+        for recording in (grid, published, tf):
+            recording.stop()
+
+
 def test_an_inactive_sim_is_paused_steps_and_refuses_to_play(client):
     from lifecycle_msgs.msg import Transition
     from lifecycle_msgs.srv import ChangeState, GetState

@@ -106,6 +106,13 @@ def test_errors_name_the_file_and_line_and_what_is_wrong(tmp_path, text, line, m
     assert message in text_of_error
 
 
+def test_a_scene_s_objects_may_be_measured(tmp_path):
+    text = GOOD.replace("robot: panda", "robot: g1\nscene: tables").replace("box_0", "can")
+    assert schema.load(write(tmp_path, text)).scene == "tables"
+    with pytest.raises(schema.ScenarioError, match="no object 'can'"):
+        schema.load(write(tmp_path, GOOD.replace("robot: panda", "robot: g1").replace("box_0", "can")))
+
+
 def test_robot_facts_and_error_codes_come_from_their_sources_not_copies():
     from sim_client.scenario.model import actions, robots
     from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, Walk
@@ -116,6 +123,9 @@ def test_robot_facts_and_error_codes_come_from_their_sources_not_copies():
         assert facts.default_scene == spec.scene and facts.arms == tuple(spec.end_effector_sites)
     assert actions.actions_of(robots.robot_facts("g1")) == ("walk", "navigate", "move_arm")
     assert actions.actions_of(robots.robot_facts("panda")) == ("move_arm", "pick_place")
+    tables = robots.robot_facts("g1", "tables")
+    assert tables.objects == robot_models.load("g1", "tables").objects and tables.default_scene == "open"
+    assert actions.actions_of(tables) == ("walk", "navigate", "move_arm"), "objects, but no grippers to pick them with"
     for action, action_type in (("walk", Walk), ("navigate", NavigateToPose), ("move_arm", MoveArm), ("pick_place", PickPlace)):
         names = actions.ACTIONS[action].error_names
         assert names[0] == "SUCCESS" and "INVALID_GOAL" in names

@@ -89,7 +89,7 @@ _ACTION_LIST = (
     ActionKind("move_arm", MoveArm, lambda robot: bool(robot.arms), _move_arm_goal, _make_move_arm,
                "position [x,y,z], rpy [r,p,y] (omit = position only), arm, position_tolerance, orientation_tolerance, "
                "max_velocity_scaling, timeout, frame"),
-    ActionKind("pick_place", PickPlace, lambda robot: bool(robot.objects), _pick_place_goal,
+    ActionKind("pick_place", PickPlace, lambda robot: bool(robot.objects) and robot.grips, _pick_place_goal,
                lambda client, g: client.goal(g["object"], g["place"], arm=g["arm"], timeout=g["timeout"]),
                "object, place [x,y,z], arm, timeout"),
 )

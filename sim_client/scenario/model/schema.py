@@ -136,7 +136,7 @@ def _check_references(ctx: Ctx, scenario: Scenario) -> None:
             if expectation.outcome_error and expectation.outcome_error not in allowed:
                 raise ctx.error(expectation.line, f"expectation {expectation.name!r}: {action} has no error code "
                                 f"{expectation.outcome_error!r}; it has: {', '.join(allowed)}")
-    robot = robot_facts(scenario.robot)
+    robot = robot_facts(scenario.robot, scenario.scene)
     for measure, line in measures:
         kind = MEASURES[measure.kind]
         at = measure.line or line
@@ -168,6 +168,7 @@ def parse(text: str, file: str = "<scenario>") -> Scenario:
     problem = scene_problem(robot.name, scene)
     if problem is not None:
         raise ctx.error(f.at("scene"), f"scenario: {problem}")
+    robot = robot_facts(robot.name, scene)  # the scene's objects
     seed = f.integer("seed", 0)
     keyframe = f.string("keyframe", robot.keyframes[0], choices=robot.keyframes)
     rtf = f.number("rtf", 0.0, low=0.0, high=1000.0)
