@@ -20,6 +20,7 @@ TF_TOPIC = "/tf"
 TF_STATIC_TOPIC = "/tf_static"
 OBJECTS_TOPIC = "/objects"
 MAP_TOPIC = "/map"
+ROBOT_DESCRIPTION_TOPIC = "/robot_description"  # the robot as simulated, URDF (latched, as robot_state_publisher's)
 IMU_TOPIC = "/imu"
 CMD_VEL_TOPIC = "/cmd_vel"
 CMD_VEL_STAMPED_TOPIC = "/cmd_vel_stamped"

@@ -22,13 +22,14 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64
+from std_msgs.msg import Float64, String
 from tf2_msgs.msg import TFMessage
 
 from nodes.sim.serialized import ClockTemplate, JointStateTemplate, TemplateError
 from nodes.sim.tf import TransformSet, link_pairs
 from sim_bridge import Simulation
 from sim_bridge.navigation import grid_from_obstacles
+from sim_bridge.urdf import robot_urdf
 from sim_interfaces.msg import ObjectStates
 from sim_ros.conversions import occupancy_grid_msg, set_pose, set_time
 from sim_ros.names import (
@@ -38,6 +39,7 @@ from sim_ros.names import (
     MAP_TOPIC,
     OBJECTS_TOPIC,
     ODOM_TOPIC,
+    ROBOT_DESCRIPTION_TOPIC,
     STREAMS,
     TF_STATIC_TOPIC,
     TF_TOPIC,
@@ -84,6 +86,8 @@ class Publications:
         self._tf_static_pub = node.create_publisher(TFMessage, TF_STATIC_TOPIC, LATCHED)
         self._rtf_pub = node.create_publisher(Float64, "~/real_time_factor", RELIABLE)
         self._objects_pub = node.create_publisher(ObjectStates, OBJECTS_TOPIC, RELIABLE)
+        self._description_pub = node.create_publisher(String, ROBOT_DESCRIPTION_TOPIC, LATCHED)
+        self._description_pub.publish(String(data=robot_urdf(sim.model, sim.robot)))
 
         robot = sim.robot
         self._clock_msg = Clock()

@@ -188,3 +188,27 @@ def test_unknown_robot_is_refused_with_the_known_names():
         assert code == 2, "the node must exit with status 2 when the robot is unknown"
         output = process.output()
         assert "atlas" in output and "g1" in output and "panda" in output
+
+
+def test_robot_description_is_the_robot_as_simulated_with_a_frame_per_link(client, g1):
+    """/robot_description (latched, as robot_state_publisher publishes it): a URDF naming every joint of
+    /joint_states, whose every link is a frame on /tf (or the odometry's child), with meshes on this disk."""
+    import pathlib
+    import xml.etree.ElementTree as ET
+
+    from std_msgs.msg import String
+
+    from sim_ros.names import LATCHED
+
+    description = client.record(String, "/robot_description", qos=LATCHED, keep=1)
+    joints = client.record(JointState, "/joint_states", keep=5)
+    tf = client.record(TFMessage, "/tf", keep=500)
+    client.wait_for(lambda: description.count and joints.count and tf.count >= 20, 60.0, "/robot_description, /joint_states, /tf")
+    urdf = ET.fromstring(description.latest.data)
+    moving = {j.get("name") for j in urdf.iter("joint") if j.get("type") != "fixed"}
+    assert set(joints.latest.name) <= moving, set(joints.latest.name) - moving
+    frames = {t.child_frame_id for m in tf.messages() for t in m.transforms}
+    links = {link.get("name") for link in urdf.iter("link")}
+    assert links <= frames, links - frames
+    meshes = [m.get("filename") for m in urdf.iter("mesh")]
+    assert meshes and all(pathlib.Path(uri.removeprefix("file://")).is_file() for uri in meshes)
