@@ -23,6 +23,7 @@ from rclpy.parameter import Parameter
 from nodes.runtime.parameters import ParameterSpec, declare
 from nodes.servers.protocol import SkillContext
 from nodes.sim.camera import CameraStreams
+from nodes.sim.goal_visuals import GoalVisualsPublisher
 from nodes.sim.publication import RELIABLE
 from nodes.sim.sensors import SensorStreams
 from nodes.sim.skills import SkillBridge
@@ -102,6 +103,7 @@ class InLoopPlugins:
             sim.set_controller(Slot.ARM, arms)
             hosts.update({arm: arms for arm in self.arms.arms})
         self.skills = SkillBridge(node, sim, lock, hosts, context)
+        self.visuals = GoalVisualsPublisher(node)
         self.sensors = SensorStreams(node, sim, lock, self.battery)
         self.cameras = CameraStreams(node, sim, lock)
 
@@ -181,7 +183,9 @@ class InLoopPlugins:
         now = self._sim.time
         self.sensors.publish_due(now)
         self.cameras.publish_due(now)
-        return self.skills.publish_changed()
+        ended = self.skills.publish_changed()
+        self.visuals.update(self.skills.runs(), now)
+        return ended
 
     def publish_state(self, now: float) -> None:
         """Under the lock, when controller state topics are due."""
@@ -218,6 +222,7 @@ class InLoopPlugins:
         self.sensors.on_reset()
         self.cameras.on_reset()
         self.skills.publish_changed()  # the goals the reset ended, at once
+        self.visuals.update(self.skills.runs(), self._sim.time)
 
     def on_fault(self, reason: str) -> None:
         self.on_reset()

@@ -109,6 +109,10 @@ class SkillBridge:
         """Resets of the simulation so far (every host counts them alike)."""
         return max((host.epoch for host in self._hosts.values()), default=0)
 
+    def runs(self) -> list[SkillRun]:
+        """Under the lock: the goals every host holds now (running ones and those just ended)."""
+        return [run for host in set(self._hosts.values()) for run in host.runs()]
+
     # ----- states ------------------------------------------------------------------------------
     def publish_changed(self) -> int:
         """Under the lock: publish the goals that started, ended or were asked to cancel since last time.

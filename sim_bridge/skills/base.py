@@ -66,6 +66,30 @@ class SkillOutcome:
         return SkillOutcome(SkillStatus.CANCELED, "CANCELED", message)
 
 
+@dataclass(frozen=True)
+class GoalVisuals:
+    """What a running goal shows a viewer, in the world frame.
+
+    A skill may have a ``visuals()`` method returning one (see :func:`visuals_of`); it changes only when the
+    goal's plan does (a replan, a new stage), so a publisher can compare it with the last one it sent.
+
+    Attributes:
+        path_xy: the planned path's points [m], start to goal (empty without a path).
+        goal_pose: where the robot is to end, (x [m], y [m], yaw [rad]) (None without one).
+        target_xyz: a point the goal acts on, e.g. where an object is to be placed [m] (None without one).
+    """
+
+    path_xy: tuple[tuple[float, float], ...] = ()
+    goal_pose: tuple[float, float, float] | None = None
+    target_xyz: tuple[float, float, float] | None = None
+
+
+def visuals_of(skill: object) -> GoalVisuals | None:
+    """The skill's :class:`GoalVisuals` now, or None for a skill that shows nothing."""
+    visuals = getattr(skill, "visuals", None)
+    return visuals() if callable(visuals) else None
+
+
 PREEMPTED = "PREEMPTED"
 SIM_FAULT = "SIM_FAULT"
 INVALID_GOAL = "INVALID_GOAL"

@@ -13,7 +13,7 @@ from collections.abc import Mapping
 import mujoco
 
 from sim_bridge.battery import Battery
-from sim_bridge.skills.base import Skill, SkillOutcome, SkillStatus, Values
+from sim_bridge.skills.base import GoalVisuals, Skill, SkillOutcome, SkillStatus, Values, visuals_of
 
 BATTERY_LOW = "BATTERY_LOW"
 
@@ -73,3 +73,6 @@ class BatteryGuard:
 
     def result(self, data: mujoco.MjData) -> Values:
         return self.inner.result(data)
+
+    def visuals(self) -> GoalVisuals | None:
+        return visuals_of(self.inner)

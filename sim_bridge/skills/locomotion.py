@@ -24,7 +24,7 @@ from sim_bridge.locomotion import LocomotionMode, WalkingController
 from sim_bridge.navigation import NoPathError, OccupancyGrid, PathFollower, plan_path
 from sim_bridge.navigation.follower import FollowerCommand, wrap_angle
 from sim_bridge.navigation.planner import path_length
-from sim_bridge.skills.base import SkillOutcome, Values
+from sim_bridge.skills.base import GoalVisuals, SkillOutcome, Values
 from sim_bridge.state import Pose
 
 LEGS = "legs"
@@ -291,6 +291,11 @@ class NavigateSkill(_LocomotionSkill):
         self._best_remaining = math.inf
         self._last_progress = 0.0
         self.path: list[tuple[float, float]] = []
+
+    def visuals(self) -> GoalVisuals:
+        """The planned path and the goal pose (world frame)."""
+        goal = (self.goal.x_m, self.goal.y_m, self.goal.yaw_rad)
+        return GoalVisuals(path_xy=tuple((float(x), float(y)) for x, y in self.path), goal_pose=goal)
 
     def _plan(self, x: float, y: float) -> None:
         """Plan from (x, y) and start following. Raises NoPathError."""

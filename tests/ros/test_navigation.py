@@ -37,9 +37,28 @@ def test_the_course_is_published_as_a_map(client, course):
 
 
 def test_navigate_to_a_goal_behind_the_wall(client, navigate):
+    from nav_msgs.msg import Path
+    from visualization_msgs.msg import Marker, MarkerArray
+
+    from sim_ros.names import LATCHED
+
+    plans = client.record(Path, "/plan", qos=LATCHED)
+    markers = client.record(MarkerArray, "/goal_markers", qos=LATCHED)
     sent = send(client, navigate, nav_goal(3.0, 0.0))
     assert sent.handle.accepted
     outcome = result(client, sent, timeout=400.0)
+    # the plan, as Nav2 publishes it: around the wall to the goal, then cleared when the goal ended
+    client.wait_for(lambda: plans.count >= 2 and not plans.latest.poses, 60.0, "/plan cleared after the goal")
+    planned = [p for p in plans.messages() if p.poses]
+    assert planned and planned[0].header.frame_id == "world"
+    points = [(q.pose.position.x, q.pose.position.y) for q in planned[0].poses]
+    assert math.dist(points[-1], (3.0, 0.0)) < 0.1 and max(abs(y) for _, y in points) > 0.9, points
+    client.wait_for(lambda: markers.count >= 2 and len(markers.latest.markers) == 1, 60.0, "/goal_markers cleared")
+    shown = [m for array in markers.messages() for m in array.markers]
+    arrows = [m for m in shown if m.type == Marker.ARROW and m.action == Marker.ADD]
+    assert arrows and math.dist((arrows[0].pose.position.x, arrows[0].pose.position.y), (3.0, 0.0)) < 1e-6
+    assert any(m.type == Marker.LINE_STRIP and len(m.points) == len(points) for m in shown)
+    assert markers.latest.markers[0].action == Marker.DELETEALL
     assert outcome.status == GoalStatus.STATUS_SUCCEEDED, outcome.result.error_msg
     final = outcome.result.final_pose.pose.position
     assert math.dist((final.x, final.y), (3.0, 0.0)) <= 0.2
