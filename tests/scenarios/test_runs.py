@@ -71,8 +71,8 @@ def test_a_sim_only_scenario_runs_headless_with_a_json_report_and_an_mcap(tmp_pa
     assert measured["elbow at the home angle"] == pytest.approx(-2.356, abs=0.02)
 
     counts = recording.read_mcap_topics(pathlib.Path(report["artifacts"]["mcap"]))
-    for topic in ("/clock", "/joint_states", "/odom", "/objects", "/tf"):
-        assert counts.get(topic, 0) > 0, f"{topic} missing from the MCAP: {counts}"
+    for topic in ("/clock", "/joint_states", "/odom", "/objects", "/tf", "/robot_description"):
+        assert counts.get(topic, 0) > 0, f"{topic} missing from the MCAP: {counts}"  # the robot plays back in 3D
     # 2 s of sim time at the sim's default rates (100 Hz clock, 200 Hz joint states)
     assert counts["/clock"] >= 190 and counts["/joint_states"] >= 380
     assert "/scene_camera/image_raw" not in counts, "a run not asked for the camera leaves it unwatched (unrendered)"
