@@ -1,6 +1,6 @@
 """``sim``: the project's small command line (ros2cli is not on PyPI).
 
-    sim up [--robot g1|panda] [--rtf X]          bring up /sim and every server for the robot
+    sim up [--robot g1|panda] [--rtf X] [--foxglove]   bring up /sim and every server for the robot
     sim walk 2.0 [--speed 0.3]                   send a goal, stream feedback; Ctrl-C cancels it
     sim navigate X Y YAW
     sim move-arm X Y Z [--rpy R P Y] [--arm NAME]
@@ -272,6 +272,9 @@ def build_parser() -> argparse.ArgumentParser:
     up.add_argument("--robot", choices=robot_models.ROBOT_NAMES, default=robot_models.G1)
     up.add_argument("--scene", default="", help=f"scene variant ({robot_models.scenes_summary()}); default: the robot's own")
     up.add_argument("--rtf", type=float, default=1.0, help="real-time factor; 0 = as fast as possible")
+    up.add_argument("--foxglove", action="store_true", help="serve the watched topics to the Foxglove app (WebSocket)")
+    up.add_argument("--foxglove-port", type=int, default=8765, help="its TCP port (default 8765)")
+    up.add_argument("--foxglove-host", default="127.0.0.1", help="its address (default 127.0.0.1: this machine only)")
     walk = sub.add_parser("walk", help="walk a distance [m] straight ahead (negative = backwards)")
     walk.add_argument("distance", type=float)
     walk.add_argument("--speed", type=float, default=0.0, help="[m/s]; 0 = the walking_speed parameter")
@@ -320,6 +323,8 @@ def main(argv: list[str] | None = None) -> int:
     if options.command == "up":
         args = ["bringup", "--robot", options.robot, *(["--scene", options.scene] if options.scene else []),
                 "--rtf", f"{options.rtf:g}"]
+        if options.foxglove:
+            args += ["--foxglove", "--foxglove-port", str(options.foxglove_port), "--foxglove-host", options.foxglove_host]
         print(f"running: {' '.join(args)}  (Ctrl-C stops)", flush=True)
         os.execv(str(BIN / "bringup"), args)
     if options.command == "param":

@@ -36,7 +36,14 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
                         help="a node that dies stops the others (default: it is started again)")
     parser.add_argument("--respawn-limit", type=int, default=5, help="restarts allowed per node (default 5)")
     parser.add_argument("--respawn-delay", type=float, default=1.0, help="wall seconds before a restart (default 1)")
+    parser.add_argument("--foxglove", action="store_true",
+                        help="serve the watched topics to the Foxglove app (WebSocket, foxglove_bridge)")
+    parser.add_argument("--foxglove-port", type=int, default=8765, help="its TCP port (default 8765)")
+    parser.add_argument("--foxglove-host", default="127.0.0.1",
+                        help="its address (default 127.0.0.1: this machine only; 0.0.0.0 exposes it to the network)")
     options = parser.parse_args(argv)
+    if not 0 <= options.foxglove_port <= 65535:
+        parser.error("--foxglove-port must be in [0, 65535]")
     if options.respawn_limit < 0 or not 0.0 <= options.respawn_delay <= 60.0:
         parser.error("--respawn-limit must be >= 0 and --respawn-delay in [0, 60] s")
     return options
@@ -60,6 +67,9 @@ def commands_for(options: argparse.Namespace, ros_args: list[str]) -> list[list[
         servers.append(["camera_node", "--ros-args", "-p", f"robot:={options.robot}"])
     if any(camera.tilt_joint is not None for camera in cameras):
         servers.append(["head_node", "--ros-args", "-p", f"robot:={options.robot}"])
+    if options.foxglove:
+        servers.append(["foxglove_bridge", "--ros-args", "-p", f"robot:={options.robot}",
+                        "-p", f"host:={options.foxglove_host}", "-p", f"port:={options.foxglove_port}"])
     extra = ros_args[1:] if ros_args else []
     return [command + extra for command in [sim, *servers]]
 

@@ -1,0 +1,1 @@
+"""Nodes that bridge the ROS topics to other tools (the Foxglove app)."""
