@@ -297,7 +297,7 @@ class MoveArmClient(SimActionClient[MoveArm.Goal, MoveArm.Feedback, MoveArm.Resu
     """``/move_arm`` (served by ``/arm``)."""
 
     action_type = MoveArm
-    default_name = "/move_arm"
+    default_name = "move_arm"  # relative: under the session's namespace
 
     @staticmethod
     def goal(
@@ -323,7 +323,7 @@ class PickPlaceClient(SimActionClient[PickPlace.Goal, PickPlace.Feedback, PickPl
     """``/pick_place`` (served by ``/arm``)."""
 
     action_type = PickPlace
-    default_name = "/pick_place"
+    default_name = "pick_place"  # relative: under the session's namespace
 
     @staticmethod
     def goal(object_id: str, place: tuple[float, float, float], arm: str = "", timeout: float = 0.0) -> PickPlace.Goal:
@@ -340,7 +340,7 @@ class WalkClient(SimActionClient[Walk.Goal, Walk.Feedback, Walk.Result]):
     """``/walk`` (served by ``/locomotion``)."""
 
     action_type = Walk
-    default_name = "/walk"
+    default_name = "walk"  # relative: under the session's namespace
 
     @staticmethod
     def goal(distance: float, speed: float = 0.0, timeout: float = 0.0) -> Walk.Goal:
@@ -352,7 +352,7 @@ class NavigateClient(SimActionClient[NavigateToPose.Goal, NavigateToPose.Feedbac
     """``/navigate_to_pose`` (served by ``/locomotion``)."""
 
     action_type = NavigateToPose
-    default_name = "/navigate_to_pose"
+    default_name = "navigate_to_pose"  # relative: under the session's namespace
 
     @staticmethod
     def goal(x: float, y: float, yaw: float = 0.0, frame: str = "odom") -> NavigateToPose.Goal:
@@ -415,13 +415,13 @@ class Parameters:
 
     Args:
         session: the client session.
-        node: node name, with or without the leading slash (``"sim"``, ``"/locomotion"``).
+        node: node name: relative (``"sim"``: under the session's namespace) or absolute (``"/locomotion"``).
         timeout: wall seconds to wait for the node's services and each answer.
     """
 
     def __init__(self, session: RosSession, node: str, timeout: float = 10.0) -> None:
         self.session = session
-        self.node = node if node.startswith("/") else f"/{node}"
+        self.node = node if node.startswith("/") else f"{session.namespace}/{node}"  # relative: under the namespace
         self.timeout = timeout
         self._client = session.parameters(self.node)
 

@@ -55,11 +55,11 @@ def _feedback_line(feedback: Any, t: float) -> str:
     return f"[t={t:8.2f} s] {summary}"
 
 
-def _run_goal(client_type: Any, goal: Any, action_label: str, timeout: float) -> int:
+def _run_goal(client_type: Any, goal: Any, action_label: str, timeout: float, namespace: str = "") -> int:
     from sim_client.actions import ActionError
     from sim_ros.session import RosSession, WaitTimeout
 
-    with RosSession("sim_cli", use_sim_time=True) as session:
+    with RosSession("sim_cli", use_sim_time=True, namespace=namespace) as session:
         client = client_type(session)
         try:
             handle = client.send(goal, timeout=timeout)
@@ -103,9 +103,9 @@ def _push(options: argparse.Namespace) -> int:
     from sim_ros.session import RosSession, WaitTimeout
 
     request = push_request(options.body, options.force, options.torque, options.duration)
-    with RosSession("sim_cli_push", use_sim_time=False) as session:
+    with RosSession("sim_cli_push", use_sim_time=False, namespace=options.namespace) as session:
         try:
-            response = session.call(Push, "/sim/push", request, timeout=options.timeout)
+            response = session.call(Push, "sim/push", request, timeout=options.timeout)
         except WaitTimeout as error:
             print(f"error: {error}", file=sys.stderr)
             return 2
@@ -126,7 +126,7 @@ def _param(options: argparse.Namespace) -> int:
     from sim_client.actions import ParameterError, Parameters
     from sim_ros.session import RosSession, WaitTimeout
 
-    with RosSession("sim_cli_param", use_sim_time=False) as session:
+    with RosSession("sim_cli_param", use_sim_time=False, namespace=options.namespace) as session:
         params = Parameters(session, options.node, timeout=options.timeout)
         try:
             if options.verb == "list":
@@ -176,10 +176,10 @@ def _watch_view(options: argparse.Namespace) -> int:
     from sim_client.scenario.running.progress import feedback_summary
     from sim_ros.session import RosSession
 
-    with RosSession("sim_watch", use_sim_time=False) as session:
-        clock = session.record(Clock, "/clock", keep=2)
-        rtf = session.record(Float64, "/sim/real_time_factor", keep=2)
-        odom = session.record(Odometry, "/odom", keep=2)
+    with RosSession("sim_watch", use_sim_time=False, namespace=options.namespace) as session:
+        clock = session.record(Clock, "clock", keep=2)
+        rtf = session.record(Float64, "sim/real_time_factor", keep=2)
+        odom = session.record(Odometry, "odom", keep=2)
         feedback: dict[str, Any] = {}
         status: dict[str, Any] = {}
         for client in ACTION_CLIENTS.values():
@@ -246,8 +246,8 @@ def _snapshot(options: argparse.Namespace) -> int:
 
     from sim_ros.session import RosSession, WaitTimeout
 
-    with RosSession("sim_snapshot", use_sim_time=True) as session:
-        images = session.record(Image, f"/{options.camera}/image_raw", keep=1)
+    with RosSession("sim_snapshot", use_sim_time=True, namespace=options.namespace) as session:
+        images = session.record(Image, f"{options.camera}/image_raw", keep=1)
         try:
             msg = session.wait_for(lambda: images.latest, options.timeout, f"an image on /{options.camera}/image_raw")
         except WaitTimeout as error:
@@ -267,6 +267,7 @@ def _snapshot(options: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="sim", description="Drive the headless simulator: bring it up, send goals, tune parameters, watch.")
+    parser.add_argument("--namespace", default="", help="the bring-up's namespace (bringup --namespace); default: the root")
     sub = parser.add_subparsers(dest="command", required=True)
     up = sub.add_parser("up", help="bring up /sim and every server for the robot (bringup)")
     up.add_argument("--robot", choices=robot_models.ROBOT_NAMES, default=robot_models.G1)
@@ -323,6 +324,8 @@ def main(argv: list[str] | None = None) -> int:
     if options.command == "up":
         args = ["bringup", "--robot", options.robot, *(["--scene", options.scene] if options.scene else []),
                 "--rtf", f"{options.rtf:g}"]
+        if options.namespace:
+            args += ["--namespace", options.namespace]
         if options.foxglove:
             args += ["--foxglove", "--foxglove-port", str(options.foxglove_port), "--foxglove-host", options.foxglove_host]
         print(f"running: {' '.join(args)}  (Ctrl-C stops)", flush=True)
@@ -339,18 +342,19 @@ def main(argv: list[str] | None = None) -> int:
 
     if options.command == "walk":
         return _run_goal(WalkClient, WalkClient.goal(options.distance, options.speed, options.timeout),
-                         f"walk {options.distance:g} m", options.server_timeout)
+                         f"walk {options.distance:g} m", options.server_timeout, options.namespace)
     if options.command == "navigate":
         return _run_goal(NavigateClient, NavigateClient.goal(options.x, options.y, options.yaw),
-                         f"navigate to ({options.x:g}, {options.y:g}, {options.yaw:g})", options.server_timeout)
+                         f"navigate to ({options.x:g}, {options.y:g}, {options.yaw:g})", options.server_timeout,
+                         options.namespace)
     if options.command == "move-arm":
         goal = MoveArmClient.goal(options.x, options.y, options.z, rpy=tuple(options.rpy) if options.rpy else None,
                                   arm=options.arm, position_tolerance=options.tolerance,
                                   orientation_tolerance=0.05 if options.rpy else 0.0)
         what = f"move-arm to ({options.x:g}, {options.y:g}, {options.z:g})"
-        return _run_goal(MoveArmClient, goal, what, options.server_timeout)
+        return _run_goal(MoveArmClient, goal, what, options.server_timeout, options.namespace)
     goal = PickPlaceClient.goal(options.box, tuple(options.place))
-    return _run_goal(PickPlaceClient, goal, f"pick {options.box}", options.server_timeout)
+    return _run_goal(PickPlaceClient, goal, f"pick {options.box}", options.server_timeout, options.namespace)
 
 
 if __name__ == "__main__":

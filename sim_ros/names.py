@@ -1,5 +1,10 @@
 """The ROS names and QoS profiles the project's nodes share, each defined once.
 
+Every name is relative: a bring-up started under a namespace (``bringup --namespace r1``, or
+``--ros-args -r __ns:=/r1``) has all of them under it (``/r1/joint_states``, ``/r1/sim/skill_command``),
+its own ``clock`` and its own ``tf`` too; in the root namespace they are the usual ``/joint_states``,
+``/clock``, ``/tf``. The docstrings below write them as they are in the root namespace.
+
 ``/sim`` publishes the streams every other node reads; the ``/sim/...`` topics below are the
 simulator's side of a device node or an action server (only the project's own nodes use them). Both
 ends of a topic take its name and its QoS from here, so they cannot drift apart. A node's own
@@ -13,50 +18,50 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 SIM_NODE = "sim"  # the simulator's node name (/sim); the servers ask it for its robot parameter
 
 # ----- streams of /sim --------------------------------------------------------------------------
-CLOCK_TOPIC = "/clock"
-JOINT_STATES_TOPIC = "/joint_states"
-ODOM_TOPIC = "/odom"
-TF_TOPIC = "/tf"
-TF_STATIC_TOPIC = "/tf_static"
-OBJECTS_TOPIC = "/objects"
-MAP_TOPIC = "/map"
-PLAN_TOPIC = "/plan"  # the running navigation's path (Nav2's name), latched
-GOAL_MARKERS_TOPIC = "/goal_markers"  # the running goals drawn for a viewer, latched
-ROBOT_DESCRIPTION_TOPIC = "/robot_description"  # the robot as simulated, URDF (latched, as robot_state_publisher's)
-IMU_TOPIC = "/imu"
-CMD_VEL_TOPIC = "/cmd_vel"
-CMD_VEL_STAMPED_TOPIC = "/cmd_vel_stamped"
+CLOCK_TOPIC = "clock"
+JOINT_STATES_TOPIC = "joint_states"
+ODOM_TOPIC = "odom"
+TF_TOPIC = "tf"
+TF_STATIC_TOPIC = "tf_static"
+OBJECTS_TOPIC = "objects"
+MAP_TOPIC = "map"
+PLAN_TOPIC = "plan"  # the running navigation's path (Nav2's name), latched
+GOAL_MARKERS_TOPIC = "goal_markers"  # the running goals drawn for a viewer, latched
+ROBOT_DESCRIPTION_TOPIC = "robot_description"  # the robot as simulated, URDF (latched, as robot_state_publisher's)
+IMU_TOPIC = "imu"
+CMD_VEL_TOPIC = "cmd_vel"
+CMD_VEL_STAMPED_TOPIC = "cmd_vel_stamped"
 
 
 def wrench_topic(sensor: str) -> str:
     """A force/torque sensor's wrench: a foot's from ``/sim``, a wrist's (calibrated) from ``/hand_sensors``."""
-    return f"/{sensor}/wrench"
+    return f"{sensor}/wrench"
 
 
 def image_topic(camera: str) -> str:
-    return f"/{camera}/image_raw"
+    return f"{camera}/image_raw"
 
 
 def camera_info_topic(camera: str) -> str:
-    return f"/{camera}/camera_info"
+    return f"{camera}/camera_info"
 
 
 # ----- /sim's side of the servers and device nodes ----------------------------------------------
-SKILL_COMMAND_TOPIC = "/sim/skill_command"  # action servers -> /sim: START, CANCEL, UPDATE of a goal
-SKILL_STATE_TOPIC = "/sim/skill_state"  # /sim -> action servers: each goal's status, feedback and result
-HAND_SENSORS_TOPIC = "/sim/hand_sensors"  # /sim -> /hand_sensors: raw wrist force/torque, hand speed and contact
-BATTERY_TOPIC = "/sim/battery"  # /sim -> /power: the battery drained in the control step
-BATTERY_CONFIG_TOPIC = "/sim/battery_config"  # /power -> /sim: the battery model's settings (latched)
+SKILL_COMMAND_TOPIC = "sim/skill_command"  # action servers -> /sim: START, CANCEL, UPDATE of a goal
+SKILL_STATE_TOPIC = "sim/skill_state"  # /sim -> action servers: each goal's status, feedback and result
+HAND_SENSORS_TOPIC = "sim/hand_sensors"  # /sim -> /hand_sensors: raw wrist force/torque, hand speed and contact
+BATTERY_TOPIC = "sim/battery"  # /sim -> /power: the battery drained in the control step
+BATTERY_CONFIG_TOPIC = "sim/battery_config"  # /power -> /sim: the battery model's settings (latched)
 
 
 def camera_settings_topic(camera: str) -> str:
     """/camera -> /sim: the camera's settings (latched)."""
-    return f"/sim/{camera}/settings"
+    return f"sim/{camera}/settings"
 
 
 def camera_tilt_topic(camera: str) -> str:
     """/head -> /sim: the tilt of a camera's mount [rad] (latched)."""
-    return f"/sim/{camera}/tilt"
+    return f"sim/{camera}/tilt"
 
 
 # ----- QoS profiles -----------------------------------------------------------------------------

@@ -82,13 +82,19 @@ class RosSession:
     Args:
         name: node name of the client.
         use_sim_time: run the client's clock on /clock (the project default).
+        namespace: the bring-up's namespace ("" = the root): relative names resolve under it, and sim time
+            comes from its clock.
     """
 
-    def __init__(self, name: str = "sim_client", use_sim_time: bool = True) -> None:
+    def __init__(self, name: str = "sim_client", use_sim_time: bool = True, namespace: str = "") -> None:
         self.context = Context()
-        rclpy.init(context=self.context)
+        namespace = namespace.strip("/")
+        # a namespaced bring-up has its own clock under the namespace; rclpy's time source reads /clock
+        rclpy.init(context=self.context, args=["--ros-args", "-r", f"/clock:=/{namespace}/clock"] if namespace else None)
+        self.namespace = f"/{namespace}" if namespace else ""
         self.node = Node(
             name,
+            namespace=self.namespace or None,
             context=self.context,
             parameter_overrides=[Parameter("use_sim_time", value=use_sim_time)],
         )

@@ -47,8 +47,8 @@ DEFAULT_PORT = 8765  # Foxglove's default
 # the goals (plan, markers), and the sensors and power when the robot has them.
 WATCHED_TOPICS = (
     ROBOT_DESCRIPTION_TOPIC, TF_TOPIC, TF_STATIC_TOPIC, JOINT_STATES_TOPIC, ODOM_TOPIC, CLOCK_TOPIC, MAP_TOPIC,
-    OBJECTS_TOPIC, PLAN_TOPIC, GOAL_MARKERS_TOPIC, "/imu", "/battery_state", "/head_camera/image_raw",
-    "/head_camera/camera_info", "/scene_camera/image_raw", "/scene_camera/camera_info",
+    OBJECTS_TOPIC, PLAN_TOPIC, GOAL_MARKERS_TOPIC, "imu", "battery_state", "head_camera/image_raw",
+    "head_camera/camera_info", "scene_camera/image_raw", "scene_camera/camera_info",
 )
 
 
@@ -83,7 +83,7 @@ class FoxgloveBridge(Node):
                           read_only=True),
         ))
         self._foxglove = foxglove
-        self._watched = WATCHED_TOPICS
+        self._watched = [self.resolve_topic_name(topic) for topic in WATCHED_TOPICS]  # under the node's namespace
         root = _asset_root()
         self._latched: dict[str, bytes] = {}  # topic -> its latest message, for a latched topic
         self._channels: dict[str, Any] = {}

@@ -82,7 +82,7 @@ class HandSensorsNode(Node):
                          for wrist in wrists}
         self._group = ReentrantCallbackGroup()
         self._readings: Any = None  # the subscription to /sim's raw readings, while anyone needs them
-        self.create_service(CalibrateHandSensors, "/calibrate_hand_sensors", self._on_calibrate, callback_group=self._group)
+        self.create_service(CalibrateHandSensors, "calibrate_hand_sensors", self._on_calibrate, callback_group=self._group)
         # /sim builds the raw readings only while someone subscribes: subscribe only while our wrenches have a
         # subscriber or a calibration runs (checked every wall second), so an idle robot costs nothing.
         self.create_timer(WATCH_PERIOD_S, self._watch_demand, callback_group=self._group,

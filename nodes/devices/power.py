@@ -58,9 +58,9 @@ class PowerNode(DeviceNode):
         self._lock = threading.Lock()
         self._latest: BatteryState | None = None
         group = MutuallyExclusiveCallbackGroup()
-        self._state_pub = self.create_publisher(BatteryState, "/battery_state", 10)
+        self._state_pub = self.create_publisher(BatteryState, "battery_state", 10)
         self.create_subscription(BatteryState, BATTERY_TOPIC, self._on_battery, QoSProfile(depth=10), callback_group=group)
-        self.create_service(GetBatteryLevel, "/get_battery_level", self._on_get_level, callback_group=group)
+        self.create_service(GetBatteryLevel, "get_battery_level", self._on_get_level, callback_group=group)
         self._next_publish = 0.0  # [s of sim time]
         # A steady 1 Hz wake-up of the executor, so that stopping this node (Ctrl-C) ends the process cleanly:
         # without any wall-clock timer it can abort ("terminate called without an active exception").

@@ -15,6 +15,7 @@ A client waiting on a goal of a server that died gets its result from bringup al
 from __future__ import annotations
 
 import argparse
+import re
 import signal
 import sys
 import threading
@@ -24,6 +25,8 @@ import robot_models
 from nodes.launch.result_keeper import ResultKeeper
 from nodes.servers.actions import ACTION_TYPES, SERVED_BY
 from sim_ros.processes import ChildProcess
+
+NAMESPACE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*")
 
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
@@ -36,12 +39,19 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
                         help="a node that dies stops the others (default: it is started again)")
     parser.add_argument("--respawn-limit", type=int, default=5, help="restarts allowed per node (default 5)")
     parser.add_argument("--respawn-delay", type=float, default=1.0, help="wall seconds before a restart (default 1)")
+    parser.add_argument("--namespace", default="",
+                        help="start every node under this namespace (e.g. r1: /r1/sim, /r1/walk, /r1/joint_states, its "
+                             "own /r1/clock and /r1/tf); default: the root")
     parser.add_argument("--foxglove", action="store_true",
                         help="serve the watched topics to the Foxglove app (WebSocket, foxglove_bridge)")
     parser.add_argument("--foxglove-port", type=int, default=8765, help="its TCP port (default 8765)")
     parser.add_argument("--foxglove-host", default="127.0.0.1",
                         help="its address (default 127.0.0.1: this machine only; 0.0.0.0 exposes it to the network)")
     options = parser.parse_args(argv)
+    options.namespace = options.namespace.strip("/")
+    if options.namespace and not NAMESPACE.fullmatch(options.namespace):
+        parser.error(f"--namespace {options.namespace!r}: letters, digits and _ in /-separated parts, "
+                     "not starting with a digit (e.g. r1 or team/r1)")
     if not 0 <= options.foxglove_port <= 65535:
         parser.error("--foxglove-port must be in [0, 65535]")
     if options.respawn_limit < 0 or not 0.0 <= options.respawn_delay <= 60.0:
@@ -71,7 +81,16 @@ def commands_for(options: argparse.Namespace, ros_args: list[str]) -> list[list[
         servers.append(["foxglove_bridge", "--ros-args", "-p", f"robot:={options.robot}",
                         "-p", f"host:={options.foxglove_host}", "-p", f"port:={options.foxglove_port}"])
     extra = ros_args[1:] if ros_args else []
+    if options.namespace:
+        extra = ["-r", f"__ns:=/{options.namespace}", *extra]
     return [command + extra for command in [sim, *servers]]
+
+
+def namespace_of(options: argparse.Namespace, ros_args: list[str]) -> str:
+    """The bring-up's namespace: ``--namespace``, else a ``__ns:=`` among the ROS arguments, else "" (the root)."""
+    if options.namespace:
+        return str(options.namespace)
+    return next((a.split(":=", 1)[1].strip("/") for a in ros_args if a.startswith("__ns:=")), "")
 
 
 def served_actions(commands: list[list[str]]) -> dict[str, list[tuple[str, Any]]]:
@@ -95,7 +114,8 @@ def main(argv: list[str] | None = None) -> int:
     children: list[ChildProcess] = []
     restarts: dict[int, int] = {}
     commands = commands_for(options, argv[split:])
-    keeper = ResultKeeper(served_actions(commands))  # first: discovered by the time any client sends a goal
+    # first: discovered by the time any client sends a goal
+    keeper = ResultKeeper(served_actions(commands), namespace_of(options, argv[split:]))
     try:
         for command in commands:
             children.append(ChildProcess(command, own_group=False, relay_output=True))

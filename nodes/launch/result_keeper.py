@@ -73,13 +73,14 @@ class ResultKeeper:
 
     Args:
         actions: executable -> ``[(action name, action type), ...]`` it serves.
+        namespace: the bring-up's namespace ("" = the root): the keeper watches the actions under it.
     """
 
-    def __init__(self, actions: dict[str, list[tuple[str, Any]]]) -> None:
+    def __init__(self, actions: dict[str, list[tuple[str, Any]]], namespace: str = "") -> None:
         self._watches: dict[str, list[_ActionWatch]] = {}
         self._verdicts: dict[int, tuple[_ActionWatch, bytes, Any] | None] = {}  # id(response) -> keep (what) or send
         self._send_now: dict[int, Callable[[Any, Any], None]] = {}  # id(service) -> rclpy's own send_response
-        self._session = RosSession("bringup", use_sim_time=False)
+        self._session = RosSession("bringup", use_sim_time=False, namespace=namespace)
         node = self._session.node
         for executable, served in actions.items():
             self._watches[executable] = [self._watch(node, name, action_type) for name, action_type in served]

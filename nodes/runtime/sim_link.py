@@ -28,7 +28,7 @@ def robot_of_sim(node: Node, timeout_s: float = 30.0) -> tuple[str, str]:
     Raises:
         RuntimeError: /sim is there but did not answer within ``timeout_s``.
     """
-    client = node.create_client(GetParameters, f"/{SIM_NODE}/get_parameters")
+    client = node.create_client(GetParameters, f"{SIM_NODE}/get_parameters")
     executor = SingleThreadedExecutor(context=node.context)
     executor.add_node(node)
     try:

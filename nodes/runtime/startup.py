@@ -76,9 +76,23 @@ def init_ros(argv: Sequence[str], own_signals: bool = False) -> None:
         signal.signal(signal.SIGINT, signal.default_int_handler)
         signal.signal(signal.SIGTERM, signal.default_int_handler)
     try:
-        rclpy.init(args=list(argv), signal_handler_options=options)
+        rclpy.init(args=with_namespaced_clock(argv), signal_handler_options=options)
     except RCLError as error:
         raise params_file_error(error) from None
+
+
+def with_namespaced_clock(argv: Sequence[str]) -> list[str]:
+    """``argv`` with ``-r /clock:=<ns>/clock`` added when it puts the node in a namespace ``<ns>`` (``__ns:=``)
+    and does not remap /clock itself: rclpy's time source reads the absolute ``/clock``, while a namespaced
+    bring-up's /sim publishes its own clock under the namespace."""
+    args = list(argv)
+    if "--ros-args" not in args:
+        return args
+    namespace = next((a.split(":=", 1)[1] for a in args if a.startswith("__ns:=")), "")
+    if not namespace.strip("/") or any(a.startswith("/clock:=") for a in args):
+        return args
+    start = args.index("--ros-args") + 1
+    return [*args[:start], "-r", f"/clock:=/{namespace.strip('/')}/clock", *args[start:]]
 
 
 class StopRequest:

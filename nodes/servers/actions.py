@@ -10,8 +10,8 @@ from typing import Any, Final
 
 from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, ResetPose, Walk
 
-ARM_ACTIONS: Final = {"move_arm": "/move_arm", "pick_place": "/pick_place"}  # skill -> the action that serves it
-LOCOMOTION_ACTIONS: Final = {"walk": "/walk", "navigate_to_pose": "/navigate_to_pose"}  # skill -> the action that serves it
+ARM_ACTIONS: Final = {"move_arm": "move_arm", "pick_place": "pick_place"}  # skill -> the action that serves it
+LOCOMOTION_ACTIONS: Final = {"walk": "walk", "navigate_to_pose": "navigate_to_pose"}  # skill -> the action that serves it
 ACTION_TYPES: Final[dict[str, Any]] = {
     "walk": Walk, "navigate_to_pose": NavigateToPose, "reset_pose": ResetPose, "move_arm": MoveArm, "pick_place": PickPlace,
 }  # skill -> its generated action type

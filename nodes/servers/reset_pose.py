@@ -55,7 +55,7 @@ class ResetPoseService:
         group = ReentrantCallbackGroup()
         self._commands = node.create_publisher(SkillCommand, SKILL_COMMAND_TOPIC, SKILL_QOS)
         node.create_subscription(SkillState, SKILL_STATE_TOPIC, self._on_state, SKILL_QOS, callback_group=group)
-        node.create_service(Trigger, "/reset_pose", self._on_reset_pose, callback_group=group)
+        node.create_service(Trigger, "reset_pose", self._on_reset_pose, callback_group=group)
         self._resend = node.create_timer(RESEND_PERIOD_S, self._watchdog, callback_group=group,
                                          clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._resend.cancel()  # runs only while a START is unanswered

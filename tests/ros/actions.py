@@ -78,7 +78,7 @@ def ready_client(session: RosSession, action_type: Any, name: str, timeout: floa
     return client
 
 
-def sim_now(client: RosSession, entity: str) -> float:
+def sim_now(client: RosSession, entity: str, sim: str = "/sim") -> float:
     """The sim's time [s] now, asked of /sim (an entity's state is stamped when it is read).
 
     A client's latest message of a topic can lag the sim by seconds on a loaded machine (a deep queue loses
@@ -87,7 +87,7 @@ def sim_now(client: RosSession, entity: str) -> float:
     from sim_ros.conversions import seconds_of
     from simulation_interfaces.srv import GetEntityState
 
-    response = client.call(GetEntityState, "/sim/get_entity_state", GetEntityState.Request(entity=entity), timeout=30.0)
+    response = client.call(GetEntityState, f"{sim}/get_entity_state", GetEntityState.Request(entity=entity), timeout=30.0)
     return seconds_of(response.state.header.stamp)
 
 

@@ -1,0 +1,63 @@
+"""Two bring-ups under their own namespaces on one ROS domain: each robot's names under its namespace, its own
+clock and tf, no cross-talk (goals, resets, parameters)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from action_msgs.msg import GoalStatus
+from nav_msgs.msg import Odometry
+from rosgraph_msgs.msg import Clock
+
+from sim_interfaces.action import Walk
+from sim_interfaces.srv import Reset
+from tests.ros.actions import ready_client, result, send, sim_now, wait_feedback
+from tests.ros.processes import running
+
+pytestmark = pytest.mark.slow
+
+GLOBAL_TOPICS = {"/rosout", "/parameter_events"}  # every ROS node's, global by design
+
+
+def xy(odom: Odometry) -> tuple[float, float]:
+    return odom.pose.pose.position.x, odom.pose.pose.position.y
+
+
+def test_two_g1s_under_r1_and_r2_share_a_domain_without_cross_talk(client):
+    with running(["bringup", "--robot", "g1", "--namespace", "r1", "--rtf", "0.5"]) as r1, \
+            running(["bringup", "--robot", "g1", "--namespace", "r2", "--rtf", "0.5"]) as r2:
+        walk = ready_client(client, Walk, "/r1/walk", timeout=120.0)
+        ready_client(client, Walk, "/r2/walk", timeout=120.0)
+        odom = {ns: client.record(Odometry, f"/{ns}/odom", qos=1000, keep=100_000) for ns in ("r1", "r2")}
+        clocks = {ns: client.record(Clock, f"/{ns}/clock", keep=10) for ns in ("r1", "r2")}
+        client.wait_for(lambda: all(o.count for o in odom.values()) and all(c.count for c in clocks.values()), 60.0,
+                        "each robot's /odom and /clock")
+
+        topics = {name for name, _ in client.node.get_topic_names_and_types()}
+        outside = {t for t in topics if not t.startswith(("/r1/", "/r2/"))} - GLOBAL_TOPICS
+        assert not outside, f"robot topics outside the namespaces: {sorted(outside)}"
+        for ns in ("r1", "r2"):
+            for name in ("clock", "joint_states", "tf", "odom", "cmd_vel", "robot_description", "sim/skill_command"):
+                assert f"/{ns}/{name}" in topics, f"/{ns}/{name}"
+        nodes = {f"{namespace.rstrip('/')}/{name}" for name, namespace in client.node.get_node_names_and_namespaces()}
+        assert {"/r1/sim", "/r1/locomotion", "/r2/sim", "/r2/locomotion"} <= nodes, nodes
+
+        assert client.set_parameter("/r1/locomotion", "walking_speed", 0.45)[0]
+        assert client.get_parameter("/r2/locomotion", "walking_speed") != 0.45, "r2's parameters are its own"
+        start = {ns: xy(o.latest) for ns, o in odom.items()}
+        sent = send(client, walk, Walk.Goal(distance=0.6))
+        wait_feedback(client, sent, lambda f: f.distance_walked > 0.1, 120.0, "r1's walk under way")
+        reset = client.call(Reset, "/r2/sim/reset", Reset.Request(), timeout=30.0)  # r2's reset, during r1's goal
+        assert reset.success, reset.message
+        outcome = result(client, sent, timeout=240.0)
+        assert outcome.status == GoalStatus.STATUS_SUCCEEDED, outcome.result.error_msg
+        r1_now = sim_now(client, "g1", sim="/r1/sim")
+        client.wait_for(lambda: seconds(odom["r1"].latest) >= r1_now, 30.0, "r1's odometry up to now")
+        assert math.dist(start["r1"], xy(odom["r1"].latest)) == pytest.approx(0.6, abs=0.06), "r1 walked"
+        assert math.dist(start["r2"], xy(odom["r2"].latest)) < 0.01, "r2 stood still"
+        assert r1.alive() and r2.alive()
+
+
+def seconds(msg: Odometry) -> float:
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
