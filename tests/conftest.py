@@ -16,3 +16,24 @@ _worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0").removeprefix("gw")
 os.environ["ROS_DOMAIN_ID"] = str(1 + (int(os.environ["SIM_TEST_DOMAIN_ID"]) - 1 + int(_worker or 0)) % 101)
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("MUJOCO_GL", "egl")
+
+import faulthandler  # noqa: E402  (after the environment above, which must come first)
+
+import pytest  # noqa: E402
+
+TEST_WATCHDOG_S = 900.0  # [s] wall: a test (with its set-up and tear-down) that takes longer is a hung test
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    """A hung test ends its worker with every thread's stack printed instead of holding the run until CI's limit.
+
+    A Fast DDS deadlock can freeze a whole process with the GIL held (see sim_ros/fastdds_profiles.xml); a timer
+    in Python could not fire then, faulthandler's watchdog thread needs no GIL. Armed from the test's set-up to its
+    tear-down (which may close a module's client).
+    """
+    faulthandler.dump_traceback_later(TEST_WATCHDOG_S, exit=True)
+    try:
+        yield
+    finally:
+        faulthandler.cancel_dump_traceback_later()
