@@ -1,4 +1,4 @@
-"""Unitree G1 (29 DoF) on a floor, built from example-robot-data's URDF.
+"""Unitree G1 (29 DoF) with Dex3-1 hands on a floor, built from example-robot-data's URDF.
 
 Changes against the URDF as shipped:
 - the floating base block (commented out in the URDF) is restored, so the pelvis has a free joint;
@@ -6,6 +6,9 @@ Changes against the URDF as shipped:
   (0.20 x 0.07 m, like the real sole); visual meshes are kept for rendering, without contacts;
 - a body shell of capsules and spheres (pelvis, torso, head, limbs, hands) that touches only the
   floor and obstacles, so a fallen robot lies on the floor;
+- the hands' contact geoms for grasping (a palm box and capsules on the finger links, condim 4, friction 1,
+  a stiff ``solref``) and position servos on their 14 joints, whose torque is the URDF's effort limit at
+  most, so a closing hand squeezes with a bounded force (see :func:`_add_hands`);
 - a floor, a light, sole/hand/IMU sites, an IMU and wrist force/torque sensors (:mod:`robot_models.sensors`),
   joint armature and damping, position servos with gains
   that hold a stand (hip/knee 500, hip yaw 350, ankle 300, kd = 0.03 kp; waist and arms 150/3);
@@ -13,7 +16,7 @@ Changes against the URDF as shipped:
   a camera needs to see (:func:`robot_models.cameras.prepare_scene_for_cameras`: sky, floor texture,
   a directional light, a 1280 x 720 offscreen buffer);
 - physics: 2 ms step, implicitfast, elliptic friction cone with impratio 10;
-- a ``stand`` keyframe in a slight crouch with both soles flat on the floor.
+- a ``stand`` keyframe in a slight crouch with both soles flat on the floor and both hands open.
 """
 
 from __future__ import annotations
@@ -53,6 +56,17 @@ HEAD_CAMERA_TILT_KV = 0.4  # [N m s/rad]
 HEAD_CAMERA_TILT_FORCE_LIMIT = 2.0  # [N m]
 HEAD_CAMERA_TILT_ARMATURE = 0.005  # [kg m^2]
 HEAD_CAMERA_TILT_DAMPING = 0.05  # [N m s/rad]
+
+# The hands' servos: light fingers (a few tens of grams per link) behind small geared motors. With
+# the armature, a finger settles in about 0.1 s, critically damped; kp 2 N m/rad saturates at the
+# URDF's effort limit (1.4 N m, the thumb's swing 2.45 N m) 0.7 rad short of a target, so a hand
+# closed on an object squeezes it with that torque at most (about 15-20 N at a fingertip).
+HAND_KP = 2.0  # [N m/rad]
+HAND_KV = 0.08  # [N m s/rad]
+HAND_ARMATURE = 0.001  # [kg m^2]
+HAND_DAMPING = 0.02  # [N m s/rad]
+HAND_CONTACT_SOLREF = [0.004, 1.0]  # stiff (2 physics steps), as the Panda's finger pads: light links sink otherwise
+HAND_FRICTION = [1.0, 0.02, 0.001]
 
 
 def _gain_for(joint: str) -> tuple[float, float]:
@@ -97,6 +111,32 @@ def _add_body_shell(spec: mujoco.MjSpec) -> None:
             geom.type = mujoco.mjtGeom.mjGEOM_SPHERE
             geom.pos = list(start)
             geom.size = [radius, 0.0, 0.0]
+
+
+def _add_hands(spec: mujoco.MjSpec) -> None:
+    """The hands' contact geoms (``HAND_PADS``) and the servos of their joints (after the body's actuators).
+
+    The geoms are massless (the links' inertials come from the URDF); the servos' force limit is each
+    joint's effort limit from the URDF, which MuJoCo also imported as the joint's actuator force range.
+    """
+    for name, body, shape, size, start, end in names.HAND_PADS:
+        geom = spec.body(body).add_geom(
+            name=name, contype=names.HAND_CONTYPE, conaffinity=1, condim=4, friction=HAND_FRICTION,
+            solref=HAND_CONTACT_SOLREF, group=3, mass=0.0, rgba=[0.3, 0.3, 0.3, 0.5], size=list(size),
+        )
+        if shape == "capsule":
+            if end is None:
+                raise ValueError(f"hand geom {name!r}: a capsule needs an end point")
+            geom.type = mujoco.mjtGeom.mjGEOM_CAPSULE
+            geom.fromto = [*start, *end]
+        else:
+            geom.type = mujoco.mjtGeom.mjGEOM_BOX
+            geom.pos = list(start)
+    for joint_name in names.HAND_JOINTS:
+        joint = spec.joint(joint_name)
+        joint.armature = HAND_ARMATURE
+        joint.damping = [HAND_DAMPING, 0.0, 0.0]
+        add_position_actuator(spec, joint_name, kp=HAND_KP, kv=HAND_KV, force_limit=float(joint.actfrcrange[1]))
 
 
 def _remove_point_mass(body: mujoco.MjsBody, mass: float, position: np.ndarray, inertia: np.ndarray) -> None:
@@ -212,6 +252,7 @@ def build_spec() -> mujoco.MjSpec:
     for joint in names.BODY_JOINTS:
         kp, kv = _gain_for(joint)
         add_position_actuator(spec, joint, kp=kp, kv=kv, force_limit=None)
+    _add_hands(spec)
     (head_camera,) = CAMERAS
     _add_head_camera(spec, head_camera)  # after the loops above: the mount has armature, damping and gains of its own
     add_position_actuator(spec, names.HEAD_CAMERA_TILT_JOINT, kp=HEAD_CAMERA_TILT_KP, kv=HEAD_CAMERA_TILT_KV,
@@ -233,6 +274,8 @@ def _stand_qpos(model: mujoco.MjModel) -> np.ndarray:
         sign = 1.0 if side == "left" else -1.0
         qpos[model.joint(f"{side}_shoulder_roll_joint").qposadr[0]] = sign * STAND_ARM_POSE["shoulder_roll"]
         qpos[model.joint(f"{side}_elbow_joint").qposadr[0]] = STAND_ARM_POSE["elbow"]
+    for joint, angle in names.HAND_OPEN_POSE.items():
+        qpos[model.joint(joint).qposadr[0]] = angle
     for camera in CAMERAS:
         if camera.tilt_joint is not None:
             qpos[model.joint(camera.tilt_joint).qposadr[0]] = camera.default_tilt_rad
@@ -244,10 +287,11 @@ def _stand_qpos(model: mujoco.MjModel) -> np.ndarray:
 
 
 def _arm_scene(model: mujoco.MjModel) -> ArmScene:
-    """The G1's hands have no grippers; its arms must keep away from the pelvis, torso, legs and waist."""
+    """The G1's hands are not the arm skills' grippers (yet); its arms must keep away from the pelvis, torso, legs
+    and waist."""
     leg_and_waist = names.LEFT_LEG_JOINTS + names.RIGHT_LEG_JOINTS + names.WAIST_JOINTS
     bodies = (names.ROOT_BODY, names.TORSO_BODY, *(model.body(model.jnt_bodyid[model.joint(j).id]).name for j in leg_and_waist))
-    # The G1's meshes are visual-only in the physics model (the soles and the shell collide).
+    # The G1's meshes are visual-only in the physics model (the soles, the shell and the hands' pads collide).
     return ArmScene(obstacle_bodies=bodies, collision_from_joint=3, make_visuals_collide=True)
 
 
@@ -283,6 +327,8 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
             "waist": names.WAIST_JOINTS,
             "left_arm": names.LEFT_ARM_JOINTS,
             "right_arm": names.RIGHT_ARM_JOINTS,
+            "left_hand": names.LEFT_HAND_JOINTS,
+            "right_hand": names.RIGHT_HAND_JOINTS,
             "head": names.HEAD_JOINTS,
         },
         actuated_joints=names.ALL_JOINTS,

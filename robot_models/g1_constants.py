@@ -1,7 +1,7 @@
-"""Every MJCF name of the Unitree G1 (29 DoF) model, in one place.
+"""Every MJCF name of the Unitree G1 (29 DoF, with Dex3-1 hands) model, in one place.
 
-Names come from example-robot-data's ``g1_29dof_rev_1_0.urdf``; the sites, the floor and the
-sole geoms are added by :mod:`robot_models.g1`.
+Names come from example-robot-data's ``g1_29dof_with_hand_rev_1_0.urdf``; the sites, the floor, the
+sole geoms and the hands' contact geoms are added by :mod:`robot_models.g1`.
 """
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import Final
 
 ROBOT_NAME: Final = "g1"
-URDF_RELATIVE_PATH: Final = "g1_description/urdf/g1_29dof_rev_1_0.urdf"
+URDF_RELATIVE_PATH: Final = "g1_description/urdf/g1_29dof_with_hand_rev_1_0.urdf"
 
 ROOT_BODY: Final = "pelvis"
 TORSO_BODY: Final = "torso_link"
@@ -37,9 +37,36 @@ LEFT_ARM_JOINTS: Final = (
 )
 RIGHT_ARM_JOINTS: Final = tuple(name.replace("left_", "right_") for name in LEFT_ARM_JOINTS)
 BODY_JOINTS: Final = LEFT_LEG_JOINTS + RIGHT_LEG_JOINTS + WAIST_JOINTS + LEFT_ARM_JOINTS + RIGHT_ARM_JOINTS
+# The Dex3-1 hands: thumb 3, middle 2, index 2 joints each; 0 is the open hand (fingers straight, thumb out).
+LEFT_HAND_JOINTS: Final = (
+    "left_hand_thumb_0_joint",  # the thumb's swing about the palm's y axis
+    "left_hand_thumb_1_joint",
+    "left_hand_thumb_2_joint",
+    "left_hand_middle_0_joint",
+    "left_hand_middle_1_joint",
+    "left_hand_index_0_joint",
+    "left_hand_index_1_joint",
+)
+RIGHT_HAND_JOINTS: Final = tuple(name.replace("left_", "right_") for name in LEFT_HAND_JOINTS)
+HAND_JOINTS: Final = LEFT_HAND_JOINTS + RIGHT_HAND_JOINTS
 HEAD_CAMERA_TILT_JOINT: Final = "head_camera_tilt_joint"  # the head camera's tilt mount (not in the URDF)
 HEAD_JOINTS: Final = (HEAD_CAMERA_TILT_JOINT,)
-ALL_JOINTS: Final = BODY_JOINTS + HEAD_JOINTS  # every actuated joint, in actuator order
+ALL_JOINTS: Final = BODY_JOINTS + HAND_JOINTS + HEAD_JOINTS  # every actuated joint, in actuator order
+
+# Hand poses [rad], in the order of LEFT_HAND_JOINTS. The right hand mirrors the left one about the
+# sagittal plane: its joints turn the other way except the thumb's swing (HAND_MIRROR). Closed: a fist
+# (the thumb folded across the index and middle fingers); the servos squeeze toward it with a bounded torque.
+LEFT_HAND_OPEN: Final = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+LEFT_HAND_CLOSED: Final = (0.0, 0.9, 1.5, -1.4, -1.5, -1.4, -1.5)
+HAND_MIRROR: Final = (1.0, -1.0, -1.0, -1.0, -1.0, -1.0, -1.0)
+HAND_OPEN_POSE: Final = {
+    **dict(zip(LEFT_HAND_JOINTS, LEFT_HAND_OPEN, strict=True)),
+    **{joint: sign * angle for joint, sign, angle in zip(RIGHT_HAND_JOINTS, HAND_MIRROR, LEFT_HAND_OPEN, strict=True)},
+}
+HAND_CLOSED_POSE: Final = {
+    **dict(zip(LEFT_HAND_JOINTS, LEFT_HAND_CLOSED, strict=True)),
+    **{joint: sign * angle for joint, sign, angle in zip(RIGHT_HAND_JOINTS, HAND_MIRROR, LEFT_HAND_CLOSED, strict=True)},
+}
 
 LEFT_FOOT_BODY: Final = "left_ankle_roll_link"
 RIGHT_FOOT_BODY: Final = "right_ankle_roll_link"
@@ -50,6 +77,7 @@ RIGHT_SOLE_GEOM: Final = "right_sole_box"
 FEET_SITES: Final = (LEFT_SOLE_SITE, RIGHT_SOLE_SITE)
 IMU_SITE: Final = "imu"
 
+# The hand's first body: the URDF's palm link is fixed to the wrist's yaw link and fused into it.
 LEFT_HAND_BODY: Final = "left_wrist_yaw_link"
 RIGHT_HAND_BODY: Final = "right_wrist_yaw_link"
 LEFT_HAND_SITE: Final = "left_hand"
@@ -62,7 +90,9 @@ STAND_KEYFRAME: Final = "stand"
 SOLE_CENTER_IN_FOOT: Final = (0.035, 0.0, -0.030)
 SOLE_HALF_SIZE: Final = (0.100, 0.035, 0.005)
 SOLE_SITE_IN_FOOT: Final = (0.035, 0.0, -0.035)
-HAND_SITE_IN_WRIST: Final = (0.10, 0.0, 0.0)
+# The hand sites (the arms' end effectors) at the palm's centre, in the wrist yaw link's frame (x along
+# the hand, toward the fingers); the palm spans x 0.042..0.129 m there, the fingers' roots are at x 0.119 m.
+HAND_SITE_IN_WRIST: Final = (0.085, 0.0, 0.0)
 
 # Body shell: primitive collision geoms that touch only the floor and obstacles (never each
 # other, never the soles), so a fallen robot lies on the floor instead of sinking through it.
@@ -85,6 +115,42 @@ BODY_SHELL: Final[tuple[tuple[str, str, str, float, Vec3, Vec3 | None], ...]] = 
     ("left_hand_shell", "left_wrist_yaw_link", "sphere", 0.04, (0.06, 0.0, 0.0), None),
     ("right_hand_shell", "right_wrist_yaw_link", "sphere", 0.04, (0.06, 0.0, 0.0), None),
 )
+
+# The hands' contact geoms for grasping: primitives on the palm and the finger links, stiff and with
+# friction (condim 4). They are of HAND_CONTYPE and accept contype 1 (conaffinity 1): they touch the
+# floor, obstacles and any object of contype 1, never the body shell or each other.
+# (geom name, body, shape, size [m], from/centre [m], to [m] or None) of the left hand, in the body's
+# frame; a box's size is its half sizes, a capsule's its radius (first entry). The right hand mirrors
+# them (y -> -y, names left_ -> right_). The palm box is the palm's extent (its grasping face is at
+# y = -0.017 m on the left hand, the side the fingers close to); capsules run along each finger link.
+HAND_CONTYPE: Final = 4
+LEFT_HAND_PADS: Final[tuple[tuple[str, str, str, Vec3, Vec3, Vec3 | None], ...]] = (
+    ("left_palm_pad", "left_wrist_yaw_link", "box", (0.0435, 0.021, 0.044), (0.085, 0.0035, 0.0), None),
+    ("left_thumb_proximal_pad", "left_hand_thumb_1_link", "capsule", (0.011, 0.0, 0.0), (0.0, -0.008, 0.0),
+     (0.0, -0.042, 0.0)),
+    ("left_thumb_distal_pad", "left_hand_thumb_2_link", "capsule", (0.009, 0.0, 0.0), (0.0, -0.006, 0.0),
+     (0.0, -0.040, 0.0)),
+    ("left_middle_proximal_pad", "left_hand_middle_0_link", "capsule", (0.012, 0.0, 0.0), (0.008, 0.0, 0.0),
+     (0.043, 0.0, 0.0)),
+    ("left_middle_distal_pad", "left_hand_middle_1_link", "capsule", (0.009, 0.0, 0.0), (0.006, 0.0, 0.0),
+     (0.041, 0.0, 0.0)),
+    ("left_index_proximal_pad", "left_hand_index_0_link", "capsule", (0.012, 0.0, 0.0), (0.008, 0.0, 0.0),
+     (0.043, 0.0, 0.0)),
+    ("left_index_distal_pad", "left_hand_index_1_link", "capsule", (0.009, 0.0, 0.0), (0.006, 0.0, 0.0),
+     (0.041, 0.0, 0.0)),
+)
+
+
+def _mirrored(point: Vec3) -> Vec3:
+    return (point[0], -point[1], point[2])
+
+
+RIGHT_HAND_PADS: Final = tuple(
+    (name.replace("left_", "right_"), body.replace("left_", "right_"), shape, size, _mirrored(start),
+     None if end is None else _mirrored(end))
+    for name, body, shape, size, start, end in LEFT_HAND_PADS
+)
+HAND_PADS: Final = LEFT_HAND_PADS + RIGHT_HAND_PADS
 IMU_SITE_IN_PELVIS: Final = (0.04525, 0.0, -0.08339)
 IMU_FRAME: Final = "imu_in_pelvis"  # the URDF's link name of the pelvis IMU (a site here)
 LEFT_WRIST_FT_SITE: Final = "left_wrist_ft"  # force/torque sensors between each hand and its arm

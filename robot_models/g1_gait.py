@@ -32,8 +32,8 @@ BIPED: Final = BipedDescription(
     leg_joints=LEG_JOINTS,
     knee_joints=names.KNEE_JOINTS,
     waist_joints=names.WAIST_JOINTS,
-    # The arms and the head camera's tilt mount stay on their position servos while walking.
-    servo_joints=names.LEFT_ARM_JOINTS + names.RIGHT_ARM_JOINTS + names.HEAD_JOINTS,
+    # The arms, the hands and the head camera's tilt mount stay on their position servos while walking.
+    servo_joints=names.LEFT_ARM_JOINTS + names.RIGHT_ARM_JOINTS + names.HAND_JOINTS + names.HEAD_JOINTS,
     walk_posture=MappingProxyType({
         joint: angle for joint in LEG_JOINTS for kind, angle in WALK_CROUCH.items() if joint.endswith(f"_{kind}_joint")
     }),

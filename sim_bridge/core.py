@@ -26,7 +26,7 @@ MAX_PUSH_TORQUE_NM = 1000.0
 MAX_PUSH_DURATION_S = 10.0
 # A push is bounded by the mass it moves (the body's whole tree: a link pushes its robot): at most
 # PUSH_MAX_ACCELERATION_G times gravity, and an impulse that changes the tree's velocity by at most
-# PUSH_MAX_DELTA_V_MPS. A shove that fells a humanoid passes (the G1: up to 3.3 kN, 233 N s); a
+# PUSH_MAX_DELTA_V_MPS. A shove that fells a humanoid passes (the G1: up to 3.4 kN, 241 N s); a
 # 50 g box gets at most 4.9 N and 0.35 N s (a toss of ~2.5 m at most), not a launch into the sky.
 PUSH_MAX_ACCELERATION_G = 10.0
 PUSH_MAX_DELTA_V_MPS = 7.0

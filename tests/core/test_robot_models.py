@@ -41,13 +41,14 @@ def test_g1_has_a_floating_base_and_real_soles():
     assert robot.floating_base
     free = model.body(robot.base_body).jntadr[0]
     assert model.jnt_type[free] == mujoco.mjtJoint.mjJNT_FREE
-    assert model.nu == 30 and len(robot.actuated_joints) == 30, "29 body joints and the head camera's tilt mount"
+    assert model.nu == 44 and len(robot.actuated_joints) == 44, "29 body joints, 14 hand joints, the camera's tilt mount"
     sole = model.geom("left_sole_box")
     width = 2 * sole.size[1]
     assert sole.type == mujoco.mjtGeom.mjGEOM_BOX and width >= 0.06, "a sole as wide as a real foot"
     colliding = [model.geom(i).name for i in range(model.ngeom) if model.geom_contype[i] or model.geom_conaffinity[i]]
     shell = sorted(name for name, *_ in g1_names.BODY_SHELL)
-    assert sorted(colliding) == sorted(["floor", "left_sole_box", "right_sole_box", *shell]), "no mesh collides"
+    pads = [name for name, *_ in g1_names.HAND_PADS]
+    assert sorted(colliding) == sorted(["floor", "left_sole_box", "right_sole_box", *shell, *pads]), "no mesh collides"
     soles_and_floor = [model.geom(name).id for name in ("floor", "left_sole_box", "right_sole_box")]
     assert all(model.geom_contype[i] == 1 for i in soles_and_floor)
     assert all(model.geom_contype[model.geom(name).id] == g1_names.SHELL_CONTYPE and

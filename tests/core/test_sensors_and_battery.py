@@ -152,7 +152,9 @@ def test_standing_the_meter_lets_the_physics_batch_and_counts_every_step_however
         sim.step_physics(1000 - split * (999 // split))
         assert sim.time == pytest.approx(2.0)
         consumed.append(battery.consumed_j)
-    assert consumed[0] == pytest.approx(BatteryConfig().idle_power_w * 2.0, rel=0.02), "2 s of idle draw (and the settling)"
+    # 2 s of idle draw and the settling after the keyframe (about 4 J since the arms carry the hands).
+    idle = BatteryConfig().idle_power_w * 2.0
+    assert idle < consumed[0] < idle * 1.05, "2 s of idle draw (and the settling)"
     # Standing, the power is held over a stretch: a longer stretch misses more of the settling after the keyframe
     # (the only work there is while standing).
     assert consumed[1] == pytest.approx(consumed[0], rel=1e-4) and consumed[2] == pytest.approx(consumed[0], rel=2e-3)
