@@ -5,7 +5,9 @@ It serves Foxglove's WebSocket protocol (subprotocol ``foxglove.websocket.v1``, 
 (default 127.0.0.1:8765: this machine only). Each watched topic that exists is advertised as a channel
 with its ROS 2 schema (``ros2msg``) and its messages are forwarded as they come, serialized (CDR, never
 decoded here), logged at their sim time. Topics that appear later (a camera started, a goal's
-markers) are picked up within ``DISCOVERY_PERIOD_S``.
+markers) are picked up within ``DISCOVERY_PERIOD_S``. A topic is taken from ROS only while a client
+watches it (latched ones always, to hand a late client their message): with nobody watching, the bridge
+costs next to nothing.
 
 Meshes: Foxglove asks the server for the files ``/robot_description`` names (``file://`` URIs); only
 files below the robot models' directory (example-robot-data's) are served, nothing else on disk.
@@ -17,6 +19,7 @@ from __future__ import annotations
 
 import pathlib
 import sys
+import threading
 from collections.abc import Callable
 from typing import Any
 
@@ -87,10 +90,13 @@ class FoxgloveBridge(Node):
         root = _asset_root()
         self._latched: dict[str, bytes] = {}  # topic -> its latest message, for a latched topic
         self._channels: dict[str, Any] = {}
+        self._sources: dict[str, tuple[Any, Any, bool]] = {}  # topic -> (message type, QoS, latched)
+        self._watchers: dict[str, int] = {}  # topic -> Foxglove subscriptions to it now
+        self._ros_subscriptions: dict[str, Any] = {}
+        self._lock = threading.Lock()
         self._server = foxglove.start_server(
             name=f"sim {robot}", host=str(self.get_parameter("host").value), port=int(self.get_parameter("port").value),
             asset_handler=lambda uri: mesh_asset(uri, root), server_listener=self._listener())
-        self._subscriptions: list[Any] = []
         self.create_timer(DISCOVERY_PERIOD_S, self._discover, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(f"Foxglove WebSocket server on {self.get_parameter('host').value}:{self._server.port} "
                                f"(open it in Foxglove: ws://HOST:{self._server.port})")
@@ -101,8 +107,6 @@ class FoxgloveBridge(Node):
         return int(self._server.port)
 
     def _discover(self) -> None:
-        from sim_ros.session import quiet_events
-
         known = dict(self.get_topic_names_and_types())
         for topic in self._watched:
             if topic in self._channels or not known.get(topic):
@@ -120,8 +124,30 @@ class FoxgloveBridge(Node):
             self._channels[topic] = channel
             qos = matching_qos(self.get_publishers_info_by_topic(topic), depth=10)
             latched = qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
-            self._subscriptions.append(self.create_subscription(
-                msg_type, topic, self._forwarder(topic, channel, latched), qos, raw=True, event_callbacks=quiet_events()))
+            with self._lock:
+                self._sources[topic] = (msg_type, qos, latched)
+                if latched or self._watchers.get(topic, 0) > 0:  # latched: always, to hand a late client its message
+                    self._subscribe(topic)
+
+    def _subscribe(self, topic: str) -> None:
+        """Under the lock: take the topic from ROS (once)."""
+        from sim_ros.session import quiet_events
+
+        if topic in self._ros_subscriptions or topic not in self._sources:
+            return
+        msg_type, qos, latched = self._sources[topic]
+        self._ros_subscriptions[topic] = self.create_subscription(
+            msg_type, topic, self._forwarder(topic, self._channels[topic], latched), qos, raw=True,
+            event_callbacks=quiet_events())
+
+    def _watch(self, topic: str, change: int) -> None:
+        """A Foxglove client subscribed (+1) or unsubscribed (-1): a topic nobody watches is not taken from ROS."""
+        with self._lock:
+            self._watchers[topic] = max(0, self._watchers.get(topic, 0) + change)
+            if self._watchers[topic] > 0:
+                self._subscribe(topic)
+            elif topic in self._ros_subscriptions and not self._sources[topic][2]:
+                self.destroy_subscription(self._ros_subscriptions.pop(topic))
 
     def _forwarder(self, topic: str, channel: Any, latched: bool) -> Callable[[bytes], None]:
         def forward(data: bytes) -> None:
@@ -136,15 +162,20 @@ class FoxgloveBridge(Node):
         return now if now > 0 else None
 
     def _listener(self) -> Any:
-        """Sends a latched topic's latest message to a client that subscribes to it (as a ROS subscriber with
-        transient-local durability gets it): the robot description, the map and the plan come at once."""
+        """Takes a topic from ROS while a client watches it, and sends a latched topic's latest message to a client
+        that subscribes (as a ROS subscriber with transient-local durability gets it): the robot description, the
+        map and the plan come at once."""
         bridge = self
 
         class Listener(self._foxglove.websocket.ServerListener):  # type: ignore[name-defined]
             def on_subscribe(self, client: Any, channel: Any) -> None:
+                bridge._watch(channel.topic, +1)
                 data = bridge._latched.get(channel.topic)
                 if data is not None:
                     bridge._channels[channel.topic].log(data, log_time=bridge._log_time())
+
+            def on_unsubscribe(self, client: Any, channel: Any) -> None:
+                bridge._watch(channel.topic, -1)
 
         return Listener()
 

@@ -53,7 +53,7 @@ def until(ws: ClientConnection, found: Any, deadline_s: float, what: str) -> Any
     raise AssertionError(f"no {what} within {deadline_s} s")
 
 
-def test_the_foxglove_app_sees_the_robot_its_frames_and_its_meshes():
+def test_the_foxglove_app_sees_the_robot_its_frames_and_its_meshes(client):
     port = free_port()
     with running(["bringup", "--robot", "panda", "--rtf", "1", "--foxglove", "--foxglove-port", str(port)]):
         with connected(port, 90.0) as ws:
@@ -72,8 +72,13 @@ def test_the_foxglove_app_sees_the_robot_its_frames_and_its_meshes():
             assert channels["/tf"]["encoding"] == "cdr" and channels["/tf"]["schemaEncoding"] == "ros2msg"
             assert channels["/tf"]["schemaName"] == "tf2_msgs/msg/TFMessage"
 
+            def bridge_reads(topic: str) -> bool:
+                return any(info.node_name == "foxglove_bridge" for info in client.node.get_subscriptions_info_by_topic(topic))
+
+            assert not bridge_reads("/tf"), "a topic nobody watches is not taken from ROS"
             ws.send(json.dumps({"op": "subscribe", "subscriptions": [
                 {"id": 1, "channelId": channels["/tf"]["id"]}, {"id": 2, "channelId": channels["/robot_description"]["id"]}]}))
+            client.wait_for(lambda: bridge_reads("/tf"), 30.0, "the bridge to subscribe to /tf once watched")
             received: dict[int, bytes] = {}
 
             def data(frame: Any) -> dict | None:
@@ -103,3 +108,5 @@ def test_the_foxglove_app_sees_the_robot_its_frames_and_its_meshes():
             ws.send(json.dumps({"op": "fetchAsset", "uri": "file:///etc/passwd", "requestId": 8}))
             status, _ = until(ws, asset(8), 30.0, "an answer for a file outside the robot models")
             assert status != 0, "nothing but the robot models' files is served"
+            ws.send(json.dumps({"op": "unsubscribe", "subscriptionIds": [1]}))
+            client.wait_for(lambda: not bridge_reads("/tf"), 30.0, "the bridge to let /tf go once nobody watches it")
