@@ -93,6 +93,8 @@ def main(argv: list[str] | None = None) -> int:
     run.add_argument("--all", action="store_true", help="--record --video --plots")
     run.add_argument("--out", type=pathlib.Path, default=pathlib.Path("scenario_runs"), help="folder for the run folders")
     run.add_argument("--attach", action="store_true", help="use nodes already running (e.g. `sim up`) instead of starting them")
+    run.add_argument("--namespace", default="",
+                     help="run under this namespace (its bring-up started there; with --attach, found there)")
     sweep = sub.add_parser("sweep", help="run a scenario over a grid of values and seeds, in parallel on Ray",
                            description="Run one scenario over every combination of --grid values, once per seed, "
                            "each run on its own ROS domain, as Ray tasks (a local Ray instance, or the cluster at "
@@ -136,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
 
     run_options = RunOptions(rtf=options.rtf, record=options.record or options.all, video=options.video or options.all,
                              plots=options.plots or options.all, camera=options.camera, out=options.out,
-                             launch=not options.attach)
+                             launch=not options.attach, namespace=options.namespace.strip("/"))
     try:
         results, bringups = run_all(scenarios, run_options)
     except KeyboardInterrupt:

@@ -24,11 +24,17 @@ def xy(odom: Odometry) -> tuple[float, float]:
     return odom.pose.pose.position.x, odom.pose.pose.position.y
 
 
-def test_two_g1s_under_r1_and_r2_share_a_domain_without_cross_talk(client):
+@pytest.mark.parametrize("second", ["g1", "panda"])
+def test_a_g1_under_r1_and_another_robot_under_r2_share_a_domain_without_cross_talk(client, second):
     with running(["bringup", "--robot", "g1", "--namespace", "r1", "--rtf", "0.5"]) as r1, \
-            running(["bringup", "--robot", "g1", "--namespace", "r2", "--rtf", "0.5"]) as r2:
+            running(["bringup", "--robot", second, "--namespace", "r2", "--rtf", "0.5"]) as r2:
         walk = ready_client(client, Walk, "/r1/walk", timeout=120.0)
-        ready_client(client, Walk, "/r2/walk", timeout=120.0)
+        if second == "g1":
+            ready_client(client, Walk, "/r2/walk", timeout=120.0)
+        else:
+            from sim_interfaces.action import MoveArm
+
+            ready_client(client, MoveArm, "/r2/move_arm", timeout=120.0)
         odom = {ns: client.record(Odometry, f"/{ns}/odom", qos=1000, keep=100_000) for ns in ("r1", "r2")}
         clocks = {ns: client.record(Clock, f"/{ns}/clock", keep=10) for ns in ("r1", "r2")}
         client.wait_for(lambda: all(o.count for o in odom.values()) and all(c.count for c in clocks.values()), 60.0,
@@ -38,13 +44,14 @@ def test_two_g1s_under_r1_and_r2_share_a_domain_without_cross_talk(client):
         outside = {t for t in topics if not t.startswith(("/r1/", "/r2/"))} - GLOBAL_TOPICS
         assert not outside, f"robot topics outside the namespaces: {sorted(outside)}"
         for ns in ("r1", "r2"):
-            for name in ("clock", "joint_states", "tf", "odom", "cmd_vel", "robot_description", "sim/skill_command"):
+            for name in ("clock", "joint_states", "tf", "odom", "robot_description", "sim/skill_command"):
                 assert f"/{ns}/{name}" in topics, f"/{ns}/{name}"
         nodes = {f"{namespace.rstrip('/')}/{name}" for name, namespace in client.node.get_node_names_and_namespaces()}
-        assert {"/r1/sim", "/r1/locomotion", "/r2/sim", "/r2/locomotion"} <= nodes, nodes
+        assert {"/r1/sim", "/r1/locomotion", "/r1/arm", "/r2/sim", "/r2/arm"} <= nodes, nodes
 
         assert client.set_parameter("/r1/locomotion", "walking_speed", 0.45)[0]
-        assert client.get_parameter("/r2/locomotion", "walking_speed") != 0.45, "r2's parameters are its own"
+        if second == "g1":
+            assert client.get_parameter("/r2/locomotion", "walking_speed") != 0.45, "r2's parameters are its own"
         start = {ns: xy(o.latest) for ns, o in odom.items()}
         sent = send(client, walk, Walk.Goal(distance=0.6))
         wait_feedback(client, sent, lambda f: f.distance_walked > 0.1, 120.0, "r1's walk under way")

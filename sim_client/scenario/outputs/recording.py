@@ -22,7 +22,7 @@ class McapRecorder:
     end. Log times are the session's sim time [ns] at reception.
     """
 
-    def __init__(self, session: Any, path: pathlib.Path, exclude: tuple[str, ...] = ()) -> None:
+    def __init__(self, session: Any, path: pathlib.Path, exclude: tuple[str, ...] = (), namespace: str = "") -> None:
         from mcap.writer import CompressionType, Writer
 
         self.session = session
@@ -36,6 +36,7 @@ class McapRecorder:
         self._subscriptions: list[Any] = []
         self._sequence = 0
         self._exclude = exclude
+        self._prefix = f"{namespace}/" if namespace else ""  # a namespaced run records its own bring-up's topics only
         self.counts: dict[str, int] = {}
         self.latest_stamp_s: dict[str, float] = {}  # topic -> stamp [s] of the newest message, for stamped types
         self._stamped: set[str] = set()
@@ -47,7 +48,8 @@ class McapRecorder:
 
         node = self.session.node
         for topic, types in node.get_topic_names_and_types():
-            if topic in self._channels or topic in self.skipped or topic in self._exclude or not types:
+            if topic in self._channels or topic in self.skipped or topic in self._exclude or not types \
+                    or not topic.startswith(self._prefix):
                 continue
             type_name = types[0]
             try:

@@ -44,7 +44,7 @@ class ParameterKeeper:
 
     def remember(self, session: RosSession, node: str) -> None:
         """Read every parameter of ``node`` (``"locomotion"`` or ``"/locomotion"``), once per bring-up."""
-        node = node if node.startswith("/") else f"/{node}"
+        node = node if node.startswith("/") else f"{session.namespace}/{node}"
         if node in self.kept:
             return
         client = session.parameters(node)
@@ -102,7 +102,7 @@ class Bringup:
             return []
         restored = self.parameters.restore(session)
         request = ResetSimulation.Request(scope=ResetSimulation.Request.SCOPE_ALL)
-        response = session.call(ResetSimulation, "/sim/reset_simulation", request, timeout=SERVICE_WALL_S)
+        response = session.call(ResetSimulation, "sim/reset_simulation", request, timeout=SERVICE_WALL_S)
         if response.result.result != Result.RESULT_OK:
             raise StepFailure(f"/sim/reset_simulation: {response.result.error_message}")
         return restored
@@ -173,6 +173,8 @@ class Bringups:
                 self._say(f"the running bring-up could not be reset ({error}): starting a new one")
         self.stop()
         args = ["bringup", "--robot", scenario.robot, "--scene", scenario.scene, "--rtf", f"{rtf:g}", "--paused"]
+        if session.namespace:
+            args += ["--namespace", session.namespace.strip("/")]
         self.started += 1
         log_dir = pathlib.Path(self._logs.name) / str(self.started)
         self._say(f"starting bring-up {self.started}: {' '.join(args)}")

@@ -18,3 +18,4 @@ class RunOptions:
     out: pathlib.Path = pathlib.Path("scenario_runs")
     quiet: bool = False
     launch: bool = True  # False: use nodes already running (``sim up``)
+    namespace: str = ""  # the bring-up's namespace ("" = the root): started there, or found there with launch False

@@ -53,7 +53,7 @@ def run(scenario: Scenario, options: RunOptions = DEFAULT_OPTIONS, stream: TextI
             return run(scenario, options, stream, own)
     folder = run_folder(options.out, scenario.name)
     rtf = scenario.rtf if options.rtf is None else options.rtf
-    with RosSession("scenario_runner", use_sim_time=True) as session:
+    with RosSession("scenario_runner", use_sim_time=True, namespace=options.namespace) as session:
         if bringups is None:
             run_ = ScenarioRun(scenario, session, options, folder, stream)
             result = run_.execute()

@@ -55,21 +55,22 @@ class ScenarioRun:
         self.progress = Progress(stream, options.quiet)
         self.goals: dict[str, GoalHandle] = {}
         self.time = SimTime(session, self.lock_step, self.rtf, lambda: sum(1 for h in self.goals.values() if h.done))
-        self.odom = session.record(Odometry, "/odom", keep=1_000_000)
-        self.joints = session.record(JointState, "/joint_states", keep=1_000_000)
-        self.objects = session.record(ObjectStates, "/objects", keep=1_000_000)
+        self.odom = session.record(Odometry, "odom", keep=1_000_000)
+        self.joints = session.record(JointState, "joint_states", keep=1_000_000)
+        self.objects = session.record(ObjectStates, "objects", keep=1_000_000)
         # commanded vs measured speed, for the speed plot only: a run without plots carries no extra traffic
-        self.locomotion = session.record(LocomotionState, "/sim/locomotion_state", keep=1_000_000) if options.plots else None
+        self.locomotion = session.record(LocomotionState, "sim/locomotion_state", keep=1_000_000) if options.plots else None
         # /sim renders a camera only while it is watched: a run watches (and records) it only when asked.
         cameras = [camera.name for camera in robot_models.cameras_of(scenario.robot)]
         self.camera_name = cameras[0] if options.camera and cameras else ""
-        self.camera_images = (session.record(Image, f"/{self.camera_name}/image_raw", keep=CAMERA_FRAMES_KEPT)
+        self.camera_images = (session.record(Image, f"{self.camera_name}/image_raw", keep=CAMERA_FRAMES_KEPT)
                               if self.camera_name else None)
-        self._unwatched = tuple(f"/{name}/{topic}" for name in cameras if name != self.camera_name
+        self.streams = (f"{session.namespace}/clock", f"{session.namespace}/joint_states")  # full names, as recorded
+        self._unwatched = tuple(f"{session.namespace}/{name}/{topic}" for name in cameras if name != self.camera_name
                                 for topic in ("image_raw", "camera_info"))
-        self._reset = session.node.create_client(Reset, "/sim/reset", qos_profile=RESPONSE_QOS)
-        self._push = session.node.create_client(Push, "/sim/push", qos_profile=RESPONSE_QOS)
-        self._cmd_vel = session.node.create_publisher(Twist, "/cmd_vel", 10)
+        self._reset = session.node.create_client(Reset, "sim/reset", qos_profile=RESPONSE_QOS)
+        self._push = session.node.create_client(Push, "sim/push", qos_profile=RESPONSE_QOS)
+        self._cmd_vel = session.node.create_publisher(Twist, "cmd_vel", 10)
         self.clients: dict[str, SimActionClient] = {}
         self.goal_actions: dict[str, str] = {}
         self.cancel_triggers: dict[str, Trigger] = {}
@@ -94,7 +95,8 @@ class ScenarioRun:
         """Wait for the sim (and servers), calibrate stepping, reset to the keyframe."""
         self.session.wait_for(self._reset.service_is_ready, STARTUP_WALL_S, "the /sim node (service /sim/reset)")
         if self.options.record:
-            self.mcap = McapRecorder(self.session, self.folder / "recording.mcap", exclude=self._unwatched)
+            self.mcap = McapRecorder(self.session, self.folder / "recording.mcap", exclude=self._unwatched,
+                                     namespace=self.session.namespace)
             self.mcap.discover()
         for action in self.scenario.actions:
             client = ACTION_CLIENTS[action](self.session)
@@ -122,7 +124,7 @@ class ScenarioRun:
         def flowing() -> bool:
             mcap = self.mcap
             return (self.time.clock.count > 0 and self.joints.count > 0 and self.odom.count > 0
-                    and (mcap is None or all(mcap.counts.get(t, 0) > 0 for t in ("/clock", "/joint_states"))))
+                    and (mcap is None or all(mcap.counts.get(t, 0) > 0 for t in self.streams)))
 
         deadline = time.monotonic() + STARTUP_WALL_S
         while not flowing():
@@ -361,24 +363,24 @@ class ScenarioRun:
         end = self.marks["end"]
         exact = 1e-6
         if self.lock_step:
-            periods = {topic: 1.0 / rate for topic, name in (("/clock", "clock_rate"), ("/joint_states", "joint_state_rate"))
+            periods = {topic: 1.0 / rate for topic, name in zip(self.streams, ("clock_rate", "joint_state_rate"), strict=True)
                        if isinstance(rate := self.parameter("sim", name), int | float) and rate > 0}
         else:
             periods = {}
-        slack = {topic: periods.get(topic, 0.05) + exact for topic in ("/clock", "/joint_states")}
+        slack = {topic: periods.get(topic, 0.05) + exact for topic in self.streams}
 
         def latest_s(recorder: TopicRecorder[Any]) -> float:
             latest = recorder.latest
             return -math.inf if latest is None else stamp_s(latest.header.stamp)
 
         def arrived() -> bool:
-            if latest_s(self.odom) < end - 0.05 or latest_s(self.joints) < end - slack["/joint_states"]:
+            if latest_s(self.odom) < end - 0.05 or latest_s(self.joints) < end - slack[self.streams[1]]:
                 return False
             mcap = self.mcap
             if mcap is None:
                 return True
             return all(mcap.latest_stamp_s.get(topic, -math.inf) >= end - slack[topic]
-                       for topic in ("/clock", "/joint_states") if topic in mcap.counts)
+                       for topic in self.streams if topic in mcap.counts)
 
         try:
             self.session.wait_for(arrived, 10.0, "the final /odom, /joint_states and /clock")

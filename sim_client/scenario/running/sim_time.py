@@ -49,8 +49,8 @@ class SimTime:
         self.session = session
         self.lock_step = lock_step
         self.rtf = rtf
-        self.clock = session.record(Clock, "/clock", keep=10)
-        self._step = session.node.create_client(StepSrv, "/sim/step", qos_profile=RESPONSE_QOS)
+        self.clock = session.record(Clock, "clock", keep=10)
+        self._step = session.node.create_client(StepSrv, "sim/step", qos_profile=RESPONSE_QOS)
         self._goals_done = goals_done
         self.control_dt = 0.0  # [s] of sim time per /sim/step step, measured by calibrate()
         self._sim_now = 0.0
