@@ -1,7 +1,8 @@
 """What the running goals show a viewer: the planned path on ``/plan`` (nav_msgs/Path, Nav2's name) and
-``/goal_markers`` (visualization_msgs/MarkerArray: the path as a line, goal poses as arrows, targets as
-spheres), in the ``world`` frame (on /tf). Published when they change and cleared when the goals end; latched, so a
-viewer that connects later sees what runs now."""
+``/goal_markers`` (visualization_msgs/MarkerArray: the path as a line, goal poses as arrows, the planned
+footsteps as boxes, the cells the robot's centre keeps out of (obstacles grown by their clearance) as a
+faint red layer, targets as spheres), in the ``world`` frame (on /tf). Published when they change and
+cleared when the goals end; latched, so a viewer that connects later sees what runs now."""
 
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ PATH_WIDTH_M = 0.03
 ARROW_SIZE_M = (0.4, 0.06, 0.06)  # length, shaft and head widths of a goal pose's arrow
 TARGET_DIAMETER_M = 0.05
 PATH_HEIGHT_M = 0.01  # just above the floor
+SOLE_SIZE_M = (0.2, 0.07, 0.01)  # a planned footstep drawn as a flat box of about a sole's size (orientation not drawn)
 
 
 class GoalVisualsPublisher:
@@ -91,6 +93,19 @@ class GoalVisualsPublisher:
                 arrow.scale.x, arrow.scale.y, arrow.scale.z = ARROW_SIZE_M
                 arrow.color.g = 1.0
                 markers.append(arrow)
+            if visuals.footsteps:
+                soles = marker(f"{resource}/footsteps", seq, Marker.CUBE_LIST)
+                soles.scale.x, soles.scale.y, soles.scale.z = SOLE_SIZE_M
+                soles.color.r, soles.color.g, soles.color.b = 0.2, 0.4, 1.0
+                soles.points = [Point(x=x, y=y, z=SOLE_SIZE_M[2] / 2) for x, y, _ in visuals.footsteps]
+                markers.append(soles)
+            if visuals.keep_out_xy:
+                keep_out = marker(f"{resource}/keep_out", seq, Marker.CUBE_LIST)
+                keep_out.scale.x = keep_out.scale.y = visuals.keep_out_cell_m
+                keep_out.scale.z = 0.002
+                keep_out.color.r, keep_out.color.a = 1.0, 0.25
+                keep_out.points = [Point(x=x, y=y, z=0.001) for x, y in visuals.keep_out_xy]
+                markers.append(keep_out)
             if visuals.target_xyz is not None:
                 sphere = marker(f"{resource}/target", seq, Marker.SPHERE)
                 sphere.pose.position.x, sphere.pose.position.y, sphere.pose.position.z = visuals.target_xyz

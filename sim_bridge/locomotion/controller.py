@@ -160,6 +160,11 @@ class WalkingController:
         left, right = self._estimator.feet(data)
         return midpoint((left.x, left.y), (right.x, right.y))
 
+    def planned_footsteps(self) -> list[tuple[float, float, float]]:
+        """The footsteps planned ahead, (x [m], y [m], yaw [rad]) of each sole in world, next first (empty standing)."""
+        planner = getattr(self, "_planner", None)
+        return [] if planner is None else [(step.x, step.y, step.yaw) for step in planner.planned()]
+
     def stop_point_remaining(self) -> float:
         """Distance [m] along the walking heading from the planned walking frame to the stop point.
 

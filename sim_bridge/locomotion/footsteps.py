@@ -93,6 +93,10 @@ class FootstepPlanner:
         x, y = self._reach.clip(frame_pos[0] + dx, frame_pos[1] + dy, swing, stance)
         return Footstep(swing, x, y, frame_yaw)
 
+    def planned(self) -> list[Footstep]:
+        """The footsteps planned ahead so far (world frame), next first; empty while none is."""
+        return [step[0] for step in self._plan]
+
     def next_footstep(self, frame_pos: Point, frame_yaw: float, swing: Side, stance: Footstep) -> tuple[Footstep, bool]:
         """The next landing of ``swing`` and whether it is a closing (zero-velocity) step."""
         footstep, closing, _, _ = self.next_footstep_and_frame(frame_pos, frame_yaw, swing, stance)

@@ -43,6 +43,11 @@ class OccupancyGrid:
     def center_of(self, ix: int, iy: int) -> tuple[float, float]:
         return (self.origin_xy[0] + (ix + 0.5) * self.resolution, self.origin_xy[1] + (iy + 0.5) * self.resolution)
 
+    def occupied_centers(self) -> tuple[tuple[float, float], ...]:
+        """World centres [m] of the occupied cells, row by row."""
+        rows, columns = np.nonzero(self.occupied)
+        return tuple(self.center_of(int(ix), int(iy)) for iy, ix in zip(rows.tolist(), columns.tolist(), strict=True))
+
     def inside(self, ix: int, iy: int) -> bool:
         return 0 <= ix < self.width and 0 <= iy < self.height
 

@@ -17,7 +17,7 @@ from robot_models.validation import check_range
 from sim_bridge.arm import ArmController, PickPlace, PickPlaceFailure, PickPlaceGoal, PickPlaceProgress
 from sim_bridge.arm.poses import rotation_error
 from sim_bridge.errors import InvalidGoalError
-from sim_bridge.skills.base import SkillOutcome, Values
+from sim_bridge.skills.base import GoalVisuals, SkillOutcome, Values
 from sim_bridge.state import Pose
 
 SETTLED_S = 0.03  # the tool must stay within tolerance this long to count as arrived [s of sim time]
@@ -115,6 +115,11 @@ class MoveArmSkill(_ArmSkill):
         self._start_distance = 1e-9
         self._within_since: float | None = None
 
+    def visuals(self) -> GoalVisuals:
+        """Where the tool is to go (world frame)."""
+        x, y, z = (float(v) for v in self.goal.target.position)
+        return GoalVisuals(target_xyz=(x, y, z))
+
     def start(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         goal = self.goal
         self.arms.set_target(goal.arm, goal.target, goal.position_only, goal.max_linear_speed, goal.max_angular_speed)
@@ -195,6 +200,11 @@ class PickPlaceSkill(_ArmSkill):
     @property
     def milestone(self) -> int:
         return int(self._progress().stage)
+
+    def visuals(self) -> GoalVisuals:
+        """Where the object is to be placed (world frame)."""
+        x, y, z = (float(v) for v in self.goal.place_position)
+        return GoalVisuals(target_xyz=(x, y, z))
 
     def start(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         self.pick_place.start(self.goal)

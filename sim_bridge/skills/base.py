@@ -77,11 +77,18 @@ class GoalVisuals:
         path_xy: the planned path's points [m], start to goal (empty without a path).
         goal_pose: where the robot is to end, (x [m], y [m], yaw [rad]) (None without one).
         target_xyz: a point the goal acts on, e.g. where an object is to be placed [m] (None without one).
+        footsteps: the footsteps the walker plans ahead, (x [m], y [m], yaw [rad]) of each sole, next first.
+        keep_out_xy: centres [m] of the map cells the robot's centre must keep out of: the obstacles grown
+            by their clearance (robot radius + detection threshold).
+        keep_out_cell_m: the side of those cells [m].
     """
 
     path_xy: tuple[tuple[float, float], ...] = ()
     goal_pose: tuple[float, float, float] | None = None
     target_xyz: tuple[float, float, float] | None = None
+    footsteps: tuple[tuple[float, float, float], ...] = ()
+    keep_out_xy: tuple[tuple[float, float], ...] = ()
+    keep_out_cell_m: float = 0.0
 
 
 def visuals_of(skill: object) -> GoalVisuals | None:

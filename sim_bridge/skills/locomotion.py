@@ -291,11 +291,19 @@ class NavigateSkill(_LocomotionSkill):
         self._best_remaining = math.inf
         self._last_progress = 0.0
         self.path: list[tuple[float, float]] = []
+        self._keep_out: tuple[tuple[float, float], ...] | None = None  # the inflated grid's occupied cells, for a viewer
 
     def visuals(self) -> GoalVisuals:
         """The planned path and the goal pose (world frame)."""
         goal = (self.goal.x_m, self.goal.y_m, self.goal.yaw_rad)
-        return GoalVisuals(path_xy=tuple((float(x), float(y)) for x, y in self.path), goal_pose=goal)
+        steps = tuple((float(x), float(y), float(yaw)) for x, y, yaw in self.walker.planned_footsteps())
+        cells: tuple[tuple[float, float], ...] = ()
+        if self._inflated is not None:
+            if self._keep_out is None:
+                self._keep_out = self._inflated.occupied_centers()
+            cells = self._keep_out
+        return GoalVisuals(path_xy=tuple((float(x), float(y)) for x, y in self.path), goal_pose=goal, footsteps=steps,
+                           keep_out_xy=cells, keep_out_cell_m=self._grid.resolution if cells else 0.0)
 
     def _plan(self, x: float, y: float) -> None:
         """Plan from (x, y) and start following. Raises NoPathError."""

@@ -139,7 +139,12 @@ def test_compute_ik_answers_joint_positions_or_a_reason(client, panda):
 
 
 def test_pick_and_place_moves_a_box_held_by_friction(client, pick_place):
+    from visualization_msgs.msg import Marker, MarkerArray
+
+    from sim_ros.names import LATCHED
+
     objects = client.record(ObjectStates, "/objects", keep=100_000)
+    markers = client.record(MarkerArray, "/goal_markers", qos=LATCHED)
     goal = PickPlace.Goal(object_id="box_1")
     goal.place_pose.header.frame_id = "world"
     goal.place_pose.pose.position.x, goal.place_pose.pose.position.y = 0.40, 0.30
@@ -158,6 +163,10 @@ def test_pick_and_place_moves_a_box_held_by_friction(client, pick_place):
     final = objects.latest.poses[index].position
     assert math.dist((final.x, final.y), (0.40, 0.30)) <= 0.005
     assert abs(final.z - panda_constants.BOX_HALF_SIZE) < 0.003, "the box rests on the table"
+    # the place target was drawn while the goal ran, and cleared at its end
+    client.wait_for(lambda: markers.count >= 2 and len(markers.latest.markers) == 1, 30.0, "/goal_markers cleared")
+    targets = [m.pose.position for a in markers.messages() for m in a.markers if m.type == Marker.SPHERE]
+    assert targets and math.dist((targets[0].x, targets[0].y), (0.40, 0.30)) < 1e-6
 
 
 def test_pick_place_refuses_unknown_objects(client, pick_place):

@@ -12,6 +12,7 @@ from typing import Any
 
 import pytest
 from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 from websockets.sync.client import ClientConnection, connect
@@ -77,7 +78,8 @@ def test_the_foxglove_app_sees_the_robot_its_frames_and_its_meshes(client):
 
             assert not bridge_reads("/tf"), "a topic nobody watches is not taken from ROS"
             ws.send(json.dumps({"op": "subscribe", "subscriptions": [
-                {"id": 1, "channelId": channels["/tf"]["id"]}, {"id": 2, "channelId": channels["/robot_description"]["id"]}]}))
+                {"id": 1, "channelId": channels["/tf"]["id"]}, {"id": 2, "channelId": channels["/robot_description"]["id"]},
+                {"id": 3, "channelId": channels["/joint_states"]["id"]}]}))
             client.wait_for(lambda: bridge_reads("/tf"), 30.0, "the bridge to subscribe to /tf once watched")
             received: dict[int, bytes] = {}
 
@@ -85,9 +87,11 @@ def test_the_foxglove_app_sees_the_robot_its_frames_and_its_meshes(client):
                 if isinstance(frame, bytes) and frame[0] == MESSAGE_DATA:
                     subscription, _log_time = struct.unpack_from("<IQ", frame, 1)
                     received[subscription] = frame[13:]
-                return received if {1, 2} <= set(received) else None
+                return received if {1, 2, 3} <= set(received) else None
 
-            until(ws, data, 60.0, "messages of /tf and /robot_description")
+            until(ws, data, 60.0, "messages of /tf, /robot_description and /joint_states")
+            joints = deserialize_message(received[3], JointState)
+            assert "panda_joint1" in joints.name and len(joints.position) == len(joints.name)
             tf = deserialize_message(received[1], TFMessage)
             assert tf.transforms and tf.transforms[0].header.frame_id
             urdf = ET.fromstring(deserialize_message(received[2], String).data)

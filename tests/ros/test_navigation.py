@@ -58,6 +58,10 @@ def test_navigate_to_a_goal_behind_the_wall(client, navigate):
     arrows = [m for m in shown if m.type == Marker.ARROW and m.action == Marker.ADD]
     assert arrows and math.dist((arrows[0].pose.position.x, arrows[0].pose.position.y), (3.0, 0.0)) < 1e-6
     assert any(m.type == Marker.LINE_STRIP and len(m.points) == len(points) for m in shown)
+    steps = [p for m in shown if m.ns.endswith("/footsteps") for p in m.points]
+    assert len(steps) >= 2 and all(abs(p.y) < 2.0 for p in steps), "the planned footsteps, near the path"
+    keep_out = [m for m in shown if m.ns.endswith("/keep_out")]
+    assert keep_out and len(keep_out[0].points) > 100, "the obstacles grown by their clearance"
     assert markers.latest.markers[0].action == Marker.DELETEALL
     assert outcome.status == GoalStatus.STATUS_SUCCEEDED, outcome.result.error_msg
     final = outcome.result.final_pose.pose.position
