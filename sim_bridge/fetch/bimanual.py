@@ -98,12 +98,29 @@ def tool_target(palm: Palm, center: np.ndarray, yaw: float, half_width: float, d
     return Pose(face - tool_rotation @ palm.position_in_tool, mat_to_quat(tool_rotation))
 
 
-def grip_forces(model: mujoco.MjModel, data: mujoco.MjData, palms: tuple[Palm, Palm], body: int) -> tuple[float, float]:
-    """Normal contact force [N] of each palm's hand (left, right) on the object ``body``."""
+def grip_forces(model: mujoco.MjModel, data: mujoco.MjData, palms: tuple[Palm, Palm], body: int,
+                solve: bool = False) -> tuple[float, float]:
+    """Normal contact force [N] of each palm's hand (left, right) on the object ``body``.
+
+    Args:
+        solve: the contacts are those of the current positions but the constraint forces are not yet
+            solved for them (inside the control step, between ``mj_step1`` and ``mj_step2``): solve them
+            first (``mj_step2`` solves them again with the new controls).
+    """
+    if solve:
+        touching = any(body in (int(model.geom_bodyid[c.geom1]), int(model.geom_bodyid[c.geom2]))
+                       for c in data.contact[:data.ncon])
+        if not touching:
+            return 0.0, 0.0
+        mujoco.mj_fwdActuation(model, data)
+        mujoco.mj_fwdAcceleration(model, data)
+        mujoco.mj_fwdConstraint(model, data)
     totals = [0.0, 0.0]
     wrench = np.zeros(6)
     for index in range(data.ncon):
         contact = data.contact[index]
+        if contact.efc_address < 0:  # in the margin but not active: it carries no force
+            continue
         first, second = int(model.geom_bodyid[contact.geom1]), int(model.geom_bodyid[contact.geom2])
         if body not in (first, second):
             continue

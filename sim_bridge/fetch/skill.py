@@ -122,7 +122,7 @@ class FetchSkill:
         self._now = float(data.time)
         plan = self.plan
         assert plan is not None  # set by start
-        self._forces = grip_forces(model, data, self.palms, plan.body)
+        self._forces = grip_forces(model, data, self.palms, plan.body, solve=True)
         status = self.walker.status()
         if status.fallen:
             self.stop_now(model, data)
