@@ -87,13 +87,16 @@ def _descends(model: mujoco.MjModel, body: int, ancestor: int) -> bool:
     return False
 
 
-def tool_target(palm: Palm, center: np.ndarray, yaw: float, half_width: float, depth: float) -> Pose:
+def tool_target(palm: Palm, center: np.ndarray, yaw: float, half_width: float, depth: float, pitch: float = 0.0) -> Pose:
     """The tool pose that puts ``palm``'s face on the box side: box centre ``center`` (world [m]), yaw
-    [rad], half width along its y axis [m], the face ``depth`` [m] past the surface (negative: short of it)."""
+    [rad], half width along its y axis [m], the face ``depth`` [m] past the surface (negative: short of it),
+    the palm's x axis (along the hand) pitched ``pitch`` [rad] down from the box's x axis (a turn about
+    the face's normal: the face stays on the side)."""
     box = yaw_matrix(yaw)
     normal = -palm.side * box[:, 1]  # from the palm into the box
     face = np.asarray(center, dtype=float) - normal * (half_width - depth)
-    palm_rotation = np.column_stack([box[:, 0], np.cross(normal, box[:, 0]), normal])
+    along = math.cos(pitch) * box[:, 0] - math.sin(pitch) * box[:, 2]
+    palm_rotation = np.column_stack([along, np.cross(normal, along), normal])
     tool_rotation = palm_rotation @ palm.rotation_in_tool.T
     return Pose(face - tool_rotation @ palm.position_in_tool, mat_to_quat(tool_rotation))
 

@@ -22,6 +22,8 @@ class GripConfig:
         ready_clearance_m: ... and are raised ready this far outside them [m].
         ready_forward_m: the ready grip centre is this far ahead of the pelvis [m].
         ready_rise_m: ... and this far above the object's resting centre [m].
+        hand_pitch_rad: the hands point this much down from horizontal, along the box's sides [rad]
+            (the arms' natural reach forward and down; the palms stay flat on the sides).
         reach_speed_mps: hand speed of the reaching moves [m/s].
         carry_speed_mps: speed of the grip centre while holding (lift, place) [m/s].
         grip_period_s: the grip is regulated and re-targeted this often [s of sim time].
@@ -53,6 +55,7 @@ class GripConfig:
     grip_back_m: float = 0.04
     palm_half_length_m: float = 0.05
     grip_up_m: float = 0.03
+    hand_pitch_rad: float = 0.0
     palm_half_height_m: float = 0.04
     ready_clearance_m: float = 0.07
     ready_forward_m: float = 0.28
@@ -95,5 +98,5 @@ class GripConfig:
 
     def __post_init__(self) -> None:
         for item in fields(self):
-            if item.name != "place_press_m":
+            if item.name not in ("place_press_m", "hand_pitch_rad"):
                 check_range(item.name, getattr(self, item.name), 0.0, low_open=True, error=InvalidGoalError)

@@ -389,7 +389,8 @@ class FetchSkill:
         assert plan is not None
         half_width = float(plan.half_size[1])
         for palm, depth in zip(self.palms, self._depth, strict=True):
-            self.arms.set_target(palm.arm, tool_target(palm, self._center, self._yaw, half_width, depth), False, speed, 1.0)
+            target = tool_target(palm, self._center, self._yaw, half_width, depth, self.config.hand_pitch_rad)
+            self.arms.set_target(palm.arm, target, False, speed, 1.0)
 
     def _regulate(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """At the grip rate: move the commanded centre toward its goal; regulate each palm's squeeze."""

@@ -31,15 +31,20 @@ class StanceConfig:
         reach_m: horizontal distance from the stance point (the midpoint between the feet) to the
             object's centre along the heading [m]. Holding the arms forward, the pelvis stands a few
             centimetres behind the feet's midpoint.
+        max_reach_m: the farthest reach, for an object deeper inside the table than ``reach_m`` allows
+            (the feet then stand ``body_clearance_m`` from the edge) [m].
         body_clearance_m: least distance from the feet's midpoint to the table edge [m].
-        approach_back_m: the approach point is this much farther back than the stance [m]; it must be
-            outside the navigation map's inflated obstacles.
+        approach_back_m: the robot steps back this far from a stance when it leaves it [m].
+        approach_edge_m: the approach point, where navigation ends, is this far from the table's edge
+            [m]; it must be outside the navigation map's inflated obstacles.
         max_heading_offset_rad: largest angle between the stance heading and the edge's inward normal.
     """
 
     reach_m: float = 0.18
+    max_reach_m: float = 0.22
     body_clearance_m: float = 0.04
     approach_back_m: float = 0.35
+    approach_edge_m: float = 0.45
     max_heading_offset_rad: float = math.radians(30.0)
 
 
@@ -50,7 +55,7 @@ class Stance:
     Attributes:
         x, y: the midpoint between the feet [m].
         yaw: heading [rad].
-        approach_x, approach_y: the point ``approach_back_m`` behind, where navigation ends [m].
+        approach_x, approach_y: the point ``approach_edge_m`` from the edge, where navigation ends [m].
         table: the table's name.
     """
 
@@ -101,7 +106,8 @@ def plan_stance(table: Obstacle, x: float, y: float, grip_yaw: float | None, con
     ]
     problems = []
     for depth, normal in sorted(edges):
-        most = config.reach_m - config.body_clearance_m
+        most = config.max_reach_m - config.body_clearance_m
+        reach = max(config.reach_m, depth + config.body_clearance_m)
         if depth > most:
             problems.append(f"{depth:.2f} m inside the edge facing yaw {math.degrees(wrap(normal + math.pi)):.0f} deg "
                             f"(at most {most:.2f} m is reachable)")
@@ -113,7 +119,7 @@ def plan_stance(table: Obstacle, x: float, y: float, grip_yaw: float | None, con
                             f"(at most {math.degrees(config.max_heading_offset_rad):.0f})")
             continue
         c, s = math.cos(heading), math.sin(heading)
-        stance_x, stance_y = x - config.reach_m * c, y - config.reach_m * s
-        back = config.reach_m + config.approach_back_m
+        stance_x, stance_y = x - reach * c, y - reach * s
+        back = depth + config.approach_edge_m
         return Stance(stance_x, stance_y, wrap(heading), x - back * c, y - back * s, table.name)
     raise InvalidGoalError(f"no stance at {table.name} reaches ({x:.2f}, {y:.2f}): " + "; ".join(problems))

@@ -154,7 +154,7 @@ def test_a_stance_faces_the_nearest_edge_and_a_deep_point_has_none(robot):
     config = StanceConfig()
     stance = plan_stance(first, 1.02, 0.0, 0.0, config)
     assert (stance.x, stance.y, stance.yaw) == pytest.approx((1.02 - config.reach_m, 0.0, 0.0))
-    assert stance.approach_x == pytest.approx(stance.x - config.approach_back_m)
+    assert stance.approach_x == pytest.approx(first.center_xy[0] - first.half_size_xy[0] - config.approach_edge_m)
     side = plan_stance(second, 1.2, -2.3, None, config)  # near the second table's +y edge: stand beyond it, face -y
     assert side.yaw == pytest.approx(-math.pi / 2) and side.y == pytest.approx(-2.3 + config.reach_m)
     with pytest.raises(InvalidGoalError, match="inside the edge"):
