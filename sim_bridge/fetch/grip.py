@@ -38,6 +38,7 @@ class GripConfig:
         rest_tolerance_m: a box this close to its resting height rests [m].
         release_s: the palms open for at least this long [s].
         retreat_rise_m: the hands rise this much after the release [m].
+        retreat_speed_mps: ... this fast [m/s] (the robot stands on its servos: a quick swing tips it).
         ready_tolerance_m, reach_tolerance_m, place_tolerance_m: arrival tolerances of the moves [m].
         move_timeout_s: longest time for one arm move [s].
         unreachable_s: an arm refusing its targets this long fails the fetch [s].
@@ -70,10 +71,11 @@ class GripConfig:
     grasp_settle_s: float = 0.3
     contact_force_n: float = 1.0
     drop_after_s: float = 0.3
-    place_press_m: float = 0.01
+    place_press_m: float = 0.005
     rest_tolerance_m: float = 0.004
     release_s: float = 0.6
     retreat_rise_m: float = 0.12
+    retreat_speed_mps: float = 0.06
     ready_tolerance_m: float = 0.01
     reach_tolerance_m: float = 0.01
     place_tolerance_m: float = 0.01

@@ -270,8 +270,10 @@ class FetchSkill:
                 self._enter("lower", Stage.PLACE)
                 self._center_goal = plan.place_center - self._offset - np.array([0.0, 0.0, config.place_press_m])
         elif phase == "lower":
+            # Let go as soon as the table carries the box: pressing it down would push the hands up, which
+            # tips a robot standing on its servos backward.
             resting = float(box[2]) <= plan.place_center[2] + config.rest_tolerance_m
-            if (self._at_goal() and resting and elapsed > config.lift_settle_s) or elapsed > config.move_timeout_s:
+            if resting or (self._at_goal() and elapsed > config.lift_settle_s) or elapsed > config.move_timeout_s:
                 self._enter("release", Stage.RELEASE)
                 self._release()
         elif phase == "release":
@@ -282,7 +284,7 @@ class FetchSkill:
                 self._center = self._center + np.array([0.0, 0.0, config.retreat_rise_m])
                 self._center_goal = self._center.copy()
                 self._depth = [-config.ready_clearance_m] * 2  # wide of the box, above its top
-                self._set_grip(data, config.reach_speed_mps)
+                self._set_grip(data, config.retreat_speed_mps)
         elif phase == "raise":
             if self._arms_arrived(config.ready_tolerance_m) or elapsed > config.move_timeout_s:
                 self._hold_arms()
