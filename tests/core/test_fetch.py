@@ -183,3 +183,24 @@ def test_cancel_while_carrying_stops_and_stands_holding_the_box(robot):
     assert box.xpos[2] > g1_tables.TABLE_TOP_Z_M + 0.1, "still held up"
     assert min(grip_forces(sim.model, sim.data, palms_of(robot), sim.model.body("box").id)) > 5.0
     _release(rig)
+
+
+def test_an_object_that_leaves_the_palms_while_carried_ends_the_fetch_as_dropped(robot):
+    rig = _rig(robot)
+    skill = _skill(rig, FetchGoal("box", *PLACE))
+    run = rig.legs.start(4, skill, rig.sim.model, rig.sim.data)
+    sim = rig.sim
+    while run.status is SkillStatus.RUNNING and skill.stage < PickPlaceStage.TRANSPORT:
+        sim.step(1)
+    sim.step(100)
+    assert run.status is SkillStatus.RUNNING and skill.stage is PickPlaceStage.TRANSPORT
+    adr, dof = int(robot.model.joint("box").qposadr[0]), int(robot.model.joint("box").dofadr[0])
+    sim.data.qpos[adr:adr + 3] = [sim.data.qpos[0] - 0.6, sim.data.qpos[1] + 0.8, g1_tables.BOX.half_size[2]]  # gone
+    sim.data.qvel[dof:dof + 6] = 0.0
+    mujoco.mj_forward(sim.model, sim.data)
+    _run(rig, skill, run, Trace(), until=sim.time + 2.0)
+    assert run.outcome is not None and run.outcome.code == "OBJECT_DROPPED", run.outcome
+    assert "lies at" in run.outcome.message and "TRANSPORT" in run.outcome.message
+    sim.step(round(3.0 / sim.control_timestep))
+    assert rig.walker.status().mode is LocomotionMode.STANDING, "the robot stopped"
+    _release(rig)
