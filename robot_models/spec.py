@@ -185,6 +185,9 @@ class RobotSpec:
         sensors: the IMU, sole and wrist sensors (names, frames); none by default.
         cameras: the scene's cameras (names, optical frames, field of view, tilt mounts); none by default.
         biped: what the walking controller needs to know of a biped (None for a robot that does not walk).
+        palms: arm -> site at the centre of its palm's contact face, z axis along the face's outward
+            normal (into what the hand holds); arms that can squeeze an object between them. Empty
+            when the robot's hands cannot.
     """
 
     name: str
@@ -210,6 +213,7 @@ class RobotSpec:
     sensors: SensorLayout = field(default_factory=SensorLayout)
     cameras: tuple[CameraLayout, ...] = ()
     biped: BipedDescription | None = None
+    palms: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.arm_scene.grippers and self.grasp is None:
