@@ -351,4 +351,5 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
         sensors=SENSORS,
         cameras=CAMERAS,
         palms=dict(PALM_SITES) if scene == names.TABLES_SCENE else {},  # the pads the tables scene adds
+        palm_hand_pose=dict(names.HAND_PALM_POSE) if scene == names.TABLES_SCENE else {},
     )

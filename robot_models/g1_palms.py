@@ -1,12 +1,16 @@
 """Palm pads on the G1's wrists: contact pads to squeeze a box between both hands.
 
-A stand-in until the G1 has its Dex3-1 hands (whose palm and finger geoms will take their place):
-on the inner side of each wrist's last link, a pad of four small spheres at the corners of a
-10 x 6 cm face (one flat box would touch a flat box side at a single point, about which the held box
-pitches away; four points resist that torque), colliding with the scene's objects (and the tables,
-floor) but not with the robot itself, with the objects' contact settings (condim 4, friction 1, a
-stiff ``solref``) so a squeeze holds by friction. Each pad carries a site at the centre of its
-contact face, its z axis along the face's outward normal (from the palm into what it holds).
+The Dex3-1 hands' own palms cannot squeeze a flat side: the thumb's root sits on the palm face, so the
+thumb stands at least 3 cm proud of it in any pose (11 cm open, straight into what the palm pushes;
+4.8 cm tucked along the palm's upper edge, :data:`robot_models.g1_constants.HAND_PALM_POSE`), and a
+side meets the thumb alone. So on the inner side of each wrist's yaw link (the hand's palm body), a
+pad of four small spheres at the corners of a 10 x 6 cm face stands out past the tucked thumb (one
+flat box would touch a flat box side at a single point, about which the held box pitches away; four
+points resist that torque), colliding with the scene's objects (and the tables, floor) but not with
+the robot itself, with the objects' contact settings (condim 4, friction 1, a stiff ``solref``) so a
+squeeze holds by friction. Each pad carries a site at the centre of its contact face, its z axis
+along the face's outward normal (from the palm into what it holds). The hands hold
+``HAND_PALM_POSE`` while they squeeze (:attr:`robot_models.spec.RobotSpec.palm_hand_pose`).
 """
 
 from __future__ import annotations
@@ -21,7 +25,7 @@ import robot_models.g1_constants as names
 PAD_HALF_SIZE: Final = (0.04, 0.03)  # half extents of the face along the hand (x) and up (z) [m]
 PAD_SPHERE_RADIUS_M: Final = 0.01
 PAD_CENTER_X_M: Final = 0.09  # along the wrist link's x axis, around the hand site [m]
-PAD_FACE_Y_M: Final = 0.05  # inward offset of the pad's face from the link's x axis [m]
+PAD_FACE_Y_M: Final = 0.062  # inward offset of the pad's face from the link's x axis [m] (the tucked thumb: 0.048)
 PAD_FRICTION: Final = (1.0, 0.05, 0.001)  # torsional: a palm-sized patch resists twisting
 PAD_SOLREF: Final = (0.004, 1.0)
 PAD_CONDIM: Final = 4

@@ -164,5 +164,5 @@ def add_tables_and_objects(spec: mujoco.MjSpec) -> tuple[tuple[Obstacle, ...], t
     obstacles = tuple(_add_table(spec.worldbody, table) for table in TABLES)
     for item in OBJECTS:
         _add_object(spec.worldbody, item)
-    add_palm_pads(spec)  # until the G1 has hands: flat pads to squeeze the box between (robot_models.g1_palms)
+    add_palm_pads(spec)  # flat pads to squeeze the box between, past the tucked thumbs (robot_models.g1_palms)
     return obstacles, tuple(item.name for item in OBJECTS)

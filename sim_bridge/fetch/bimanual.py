@@ -20,7 +20,7 @@ import numpy as np
 
 from robot_models import RobotSpec
 from sim_bridge.arm.poses import mat_to_quat, quat_to_mat
-from sim_bridge.errors import InvalidGoalError
+from sim_bridge.errors import InvalidGoalError, UnknownNameError
 from sim_bridge.state import Pose
 
 
@@ -77,6 +77,20 @@ def palms_of(robot: RobotSpec) -> tuple[Palm, Palm]:
     if left.side == right.side:
         raise InvalidGoalError(f"robot {robot.name!r}: both palms are on the same side")
     return left, right
+
+
+def set_palm_hand_pose(robot: RobotSpec, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    """Command the hands' servos to the pose their palms squeeze in (``RobotSpec.palm_hand_pose``); the
+    targets stay until something else commands those joints.
+
+    Raises:
+        UnknownNameError: a joint of the pose has no actuator of its name.
+    """
+    for joint, angle in robot.palm_hand_pose.items():
+        actuator = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, joint)
+        if actuator < 0:
+            raise UnknownNameError(f"no actuator for the hand joint {joint!r}")
+        data.ctrl[actuator] = angle
 
 
 def _descends(model: mujoco.MjModel, body: int, ancestor: int) -> bool:

@@ -31,7 +31,7 @@ from robot_models import RobotSpec
 from sim_bridge.arm import ArmController, PickPlaceStage
 from sim_bridge.arm.poses import quat_to_mat
 from sim_bridge.fetch.align import StanceAligner
-from sim_bridge.fetch.bimanual import Palm, grip_forces, palms_of, tilt_of, tool_target, yaw_matrix, yaw_of
+from sim_bridge.fetch.bimanual import Palm, grip_forces, palms_of, set_palm_hand_pose, tilt_of, tool_target, yaw_matrix, yaw_of
 from sim_bridge.fetch.goal import FetchGoal, FetchPlan, plan_fetch
 from sim_bridge.fetch.grip import GripConfig
 from sim_bridge.fetch.stance import Stance, StanceConfig, wrap
@@ -101,6 +101,7 @@ class FetchSkill:
         self.plan = plan_fetch(self.robot, data, self.goal, self.grid, self.stance_config)
         self._base_qpos = int(model.jnt_qposadr[model.body_jntadr[model.body(self.robot.base_body).id]])
         self._t0 = self._now = float(data.time)
+        set_palm_hand_pose(self.robot, model, data)  # the hands take their palm pose on the way
         self._enter("navigate_pick", Stage.APPROACH)
         pick = self.plan.pick
         self._start_walk(NavigateSkill(self.walker, self.robot.base_body, self.grid,
