@@ -29,6 +29,7 @@ import robot_models.g1_tables as tables
 from robot_models.cameras import OPTICAL_IN_BODY_QUAT, CameraLayout, add_optical_camera, prepare_scene_for_cameras
 from robot_models.g1_gait import BIPED, WALKING
 from robot_models.g1_layout import CAMERAS, SENSORS
+from robot_models.g1_palms import PALM_SITES
 from robot_models.physics import set_physics_options
 from robot_models.sensors import add_sensors
 from robot_models.spec import ArmScene, Obstacle, RobotSpec, UnknownSceneError, add_position_actuator, joint_limits_of, read_urdf
@@ -349,4 +350,6 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
         biped=BIPED,
         sensors=SENSORS,
         cameras=CAMERAS,
+        palms=dict(PALM_SITES) if scene == names.TABLES_SCENE else {},  # the pads the tables scene adds
+        palm_hand_pose=dict(names.HAND_PALM_POSE) if scene == names.TABLES_SCENE else {},
     )

@@ -67,6 +67,15 @@ HAND_CLOSED_POSE: Final = {
     **dict(zip(LEFT_HAND_JOINTS, LEFT_HAND_CLOSED, strict=True)),
     **{joint: sign * angle for joint, sign, angle in zip(RIGHT_HAND_JOINTS, HAND_MIRROR, LEFT_HAND_CLOSED, strict=True)},
 }
+# Palms ready to squeeze a flat side (the tables scene's palm pads, robot_models.g1_palms): the fingers
+# straight (behind the palm face) and the thumb swung up and curled along the palm's upper edge. Open,
+# the thumb stands 11 cm proud of the palm face, straight into what the palm pushes; tucked, 4.8 cm
+# (its root, at the palm face, keeps it at least 3 cm proud in any pose).
+LEFT_HAND_PALM: Final = (-1.0, 1.0, 1.5, 0.0, 0.0, 0.0, 0.0)
+HAND_PALM_POSE: Final = {
+    **dict(zip(LEFT_HAND_JOINTS, LEFT_HAND_PALM, strict=True)),
+    **{joint: sign * angle for joint, sign, angle in zip(RIGHT_HAND_JOINTS, HAND_MIRROR, LEFT_HAND_PALM, strict=True)},
+}
 
 LEFT_FOOT_BODY: Final = "left_ankle_roll_link"
 RIGHT_FOOT_BODY: Final = "right_ankle_roll_link"

@@ -25,6 +25,7 @@ from typing import Final
 import mujoco
 
 import robot_models.g1_constants as names
+from robot_models.g1_palms import add_palm_pads
 from robot_models.spec import Obstacle
 from robot_models.validation import check_range
 
@@ -163,4 +164,5 @@ def add_tables_and_objects(spec: mujoco.MjSpec) -> tuple[tuple[Obstacle, ...], t
     obstacles = tuple(_add_table(spec.worldbody, table) for table in TABLES)
     for item in OBJECTS:
         _add_object(spec.worldbody, item)
+    add_palm_pads(spec)  # flat pads to squeeze the box between, past the tucked thumbs (robot_models.g1_palms)
     return obstacles, tuple(item.name for item in OBJECTS)

@@ -185,6 +185,11 @@ class RobotSpec:
         sensors: the IMU, sole and wrist sensors (names, frames); none by default.
         cameras: the scene's cameras (names, optical frames, field of view, tilt mounts); none by default.
         biped: what the walking controller needs to know of a biped (None for a robot that does not walk).
+        palms: arm -> site at the centre of its palm's contact face, z axis along the face's outward
+            normal (into what the hand holds); arms that can squeeze an object between them. Empty
+            when the robot's hands cannot.
+        palm_hand_pose: joint -> position [rad] the hands hold while their palms squeeze (fingers out
+            of the palm faces' way); empty: the hands need none.
     """
 
     name: str
@@ -210,6 +215,8 @@ class RobotSpec:
     sensors: SensorLayout = field(default_factory=SensorLayout)
     cameras: tuple[CameraLayout, ...] = ()
     biped: BipedDescription | None = None
+    palms: dict[str, str] = field(default_factory=dict)
+    palm_hand_pose: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.arm_scene.grippers and self.grasp is None:
@@ -220,6 +227,9 @@ class RobotSpec:
             if camera.tilt_joint is not None and camera.tilt_joint not in self.actuated_joints:
                 raise ValueError(f"robot {self.name!r}: the tilt joint {camera.tilt_joint!r} of camera {camera.name!r} "
                                  "is not an actuated joint")
+        if not set(self.palm_hand_pose) <= set(self.actuated_joints):
+            raise ValueError(f"robot {self.name!r}: the palm hand pose moves joints that are not actuated: "
+                             f"{sorted(set(self.palm_hand_pose) - set(self.actuated_joints))}")
 
     @property
     def physics_timestep(self) -> float:

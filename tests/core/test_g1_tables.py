@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 import pytest
 
 import robot_models
+import robot_models.g1_constants as names
 from robot_models import g1_tables
 from sim_bridge import Pose, Simulation
 from sim_bridge.arm import ArmController
@@ -144,3 +146,36 @@ def test_an_arm_reaches_in_the_scene_its_ik_leaving_the_objects_out(robot):
             break
     status = arm.status("right_arm")
     assert status.settled and status.position_error <= 1e-3, status
+
+
+def test_in_their_palm_pose_the_hands_keep_clear_of_the_palm_pads_faces(robot):
+    """The fetch squeezes with the wrist pads (robot_models.g1_palms): in the hands' palm pose no hand geom
+    (the tucked thumb above all, which open stands 11 cm proud of the palm) reaches a pad's face."""
+    model, data = robot.model, mujoco.MjData(robot.model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key(robot.default_keyframe).id)
+    assert set(robot.palm_hand_pose) == set(names.HAND_JOINTS) and set(robot.palms) == {"left_arm", "right_arm"}
+
+    def deepest(site: str, side: str) -> float:
+        """How far past the pad's face [m] (along its normal) the hand's contact geoms reach."""
+        mujoco.mj_kinematics(model, data)
+        face = data.site(site)
+        normal = face.xmat.reshape(3, 3)[:, 2]
+        reach = -np.inf
+        for name, *_ in names.HAND_PADS:
+            if not name.startswith(side):
+                continue
+            geom = model.geom(name).id
+            rotation, size = data.geom_xmat[geom].reshape(3, 3), model.geom_size[geom]
+            if model.geom_type[geom] == mujoco.mjtGeom.mjGEOM_BOX:
+                extent = float(np.abs(rotation.T @ normal) @ size)
+            else:  # capsule: half length along its z, then its radius
+                extent = abs(float(rotation[:, 2] @ normal)) * size[1] + size[0]
+            reach = max(reach, float((data.geom_xpos[geom] - face.xpos) @ normal) + extent)
+        return reach
+
+    open_reach = {arm: deepest(site, arm.split("_")[0]) for arm, site in robot.palms.items()}
+    assert min(open_reach.values()) > 0.03, "open, the thumbs stand past the pads"
+    for joint, angle in robot.palm_hand_pose.items():
+        data.qpos[model.joint(joint).qposadr[0]] = angle
+    for arm, site in robot.palms.items():
+        assert deepest(site, arm.split("_")[0]) < -0.01, f"{arm}: a finger or thumb reaches the pad's face"

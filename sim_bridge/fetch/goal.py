@@ -1,0 +1,170 @@
+"""A fetch goal (an object and a place on a table top) and its plan, judged where the facts are known.
+
+The plan is made from the measured state when the goal starts: the object's box, where it rests, the
+table under it, the stances at the object and at the place. A goal that no plan serves is refused
+with the reason (:class:`~sim_bridge.errors.InvalidGoalError`, or
+:class:`~sim_bridge.errors.UnknownNameError` for an unknown object).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from robot_models import RobotSpec
+from robot_models.spec import Obstacle
+from robot_models.validation import check_range, is_number
+from sim_bridge.errors import InvalidGoalError, UnknownNameError
+from sim_bridge.fetch.bimanual import tilt_of, yaw_of
+from sim_bridge.fetch.stance import Stance, StanceConfig, plan_stance, table_under, wrap
+from sim_bridge.navigation import OccupancyGrid
+
+REST_TOLERANCE_M = 0.02  # an object this close to resting height on a table top rests on it
+MAX_REST_TILT_RAD = math.radians(10.0)
+GRIP_SAFETY = 2.0  # the palms must hold this many times the object's weight by friction
+MIN_GRIP_WIDTH_M = 0.15  # the palms meet across the chest no closer than this
+MAX_GRIP_WIDTH_M = 0.40  # nor farther apart than this
+NAVIGATION_INFLATION_M = 0.40  # obstacles grow by this for the navigation (robot radius + margin)
+
+
+@dataclass(frozen=True)
+class FetchGoal:
+    """Carry an object with both hands to a place on a table top.
+
+    Attributes:
+        object_name: an object of the scene (``RobotSpec.objects``), a box.
+        place_x, place_y: where its centre goes, world frame [m], on a table top.
+        place_yaw: its yaw there [rad] (a box: modulo a half turn); None = facing the table's edge squarely.
+        grip_force_n: squeeze force per palm [N].
+        lift_height_m: how far it is lifted off the table [m].
+        walking_speed_mps: pace of the walks [m/s].
+        placement_tolerance_m: largest distance from the place counted as success [m].
+        timeout_s: [s] of sim time for the whole task.
+    """
+
+    object_name: str
+    place_x: float
+    place_y: float
+    place_yaw: float | None = None
+    grip_force_n: float = 25.0
+    lift_height_m: float = 0.10
+    walking_speed_mps: float = 0.3
+    placement_tolerance_m: float = 0.02
+    timeout_s: float = 240.0
+
+    def __post_init__(self) -> None:
+        values = {"place_x": self.place_x, "place_y": self.place_y}
+        if self.place_yaw is not None:
+            values["place_yaw"] = self.place_yaw
+        bad = [name for name, value in values.items() if not is_number(value)]
+        if bad:
+            raise InvalidGoalError(f"{', '.join(bad)} must be finite numbers")
+        check_range("grip_force", self.grip_force_n, 0.0, 80.0, low_open=True, unit="N", error=InvalidGoalError)
+        check_range("lift_height", self.lift_height_m, 0.02, 0.25, unit="m", error=InvalidGoalError)
+        check_range("walking_speed", self.walking_speed_mps, 0.1, 0.5, unit="m/s", error=InvalidGoalError)
+        check_range("placement_tolerance", self.placement_tolerance_m, 0.0, low_open=True, unit="m", error=InvalidGoalError)
+        check_range("timeout", self.timeout_s, 0.0, low_open=True, unit="s", error=InvalidGoalError)
+
+
+@dataclass(frozen=True)
+class FetchPlan:
+    """What a fetch does, measured and planned when it starts.
+
+    Attributes:
+        body: the object's body id.
+        half_size: its box's half sizes along its own x, y, z [m], shape (3,).
+        mass_kg: [kg].
+        pick: the stance at the object.
+        place: the stance at the place.
+        place_center: where the object's centre rests at the end, world frame [m], shape (3,).
+        place_top_z: the place table's top height [m].
+        pick_top_z: the height of the table the object rests on [m].
+    """
+
+    body: int
+    half_size: np.ndarray
+    mass_kg: float
+    pick: Stance
+    place: Stance
+    place_center: np.ndarray
+    place_top_z: float
+    pick_top_z: float
+
+
+def _box_of(model: mujoco.MjModel, body: int, name: str) -> np.ndarray:
+    geoms = [g for g in range(model.ngeom) if int(model.geom_bodyid[g]) == body]
+    boxes = [g for g in geoms if int(model.geom_type[g]) == int(mujoco.mjtGeom.mjGEOM_BOX)]
+    if len(geoms) != 1 or not boxes:
+        raise InvalidGoalError(f"object {name!r} is not a box: both palms squeeze only a box between them")
+    return model.geom_size[boxes[0]].copy()
+
+
+def plan_fetch(robot: RobotSpec, data: mujoco.MjData, goal: FetchGoal, grid: OccupancyGrid,
+               config: StanceConfig) -> FetchPlan:
+    """Judge the goal in the current state and plan its stances.
+
+    Raises:
+        UnknownNameError: not an object of the scene (the message lists them).
+        InvalidGoalError: the object is not a box the palms can hold, does not rest on a table top, no
+            stance reaches it, or the place is not on a table top or out of reach (the message says why).
+    """
+    model = robot.model
+    if goal.object_name not in robot.objects:
+        raise UnknownNameError(f"unknown object {goal.object_name!r}; objects: {', '.join(robot.objects) or 'none'}")
+    body = model.body(goal.object_name).id
+    half = _box_of(model, body, goal.object_name)
+    width = 2.0 * float(half[1])
+    if not MIN_GRIP_WIDTH_M <= width <= MAX_GRIP_WIDTH_M:
+        raise InvalidGoalError(f"object {goal.object_name!r} is {width:.3f} m wide across its grip axis (y): the palms "
+                               f"hold {MIN_GRIP_WIDTH_M:.2f}-{MAX_GRIP_WIDTH_M:.2f} m")
+    mass = float(model.body_mass[body])
+    mu = float(max(model.geom_friction[g][0] for g in range(model.ngeom) if int(model.geom_bodyid[g]) == body))
+    gravity = float(np.linalg.norm(model.opt.gravity))
+    if 2.0 * mu * goal.grip_force_n < GRIP_SAFETY * mass * gravity:
+        least = GRIP_SAFETY * mass * gravity / (2.0 * mu)
+        raise InvalidGoalError(f"a grip of {goal.grip_force_n:.1f} N per palm is too weak for {goal.object_name!r} "
+                               f"({mass:.2f} kg): at least {least:.1f} N")
+    tables = robot.obstacles
+    position, quat = data.xpos[body], data.xquat[body]
+    x, y, z = (float(v) for v in position)
+    table = table_under(tables, x, y)
+    if table is None or abs(z - (table.height + float(half[2]))) > REST_TOLERANCE_M or tilt_of(quat) > MAX_REST_TILT_RAD:
+        raise InvalidGoalError(f"object {goal.object_name!r} at ({x:.2f}, {y:.2f}, {z:.2f}) does not rest upright on a "
+                               f"table top ({', '.join(t.name for t in tables) or 'no tables'})")
+    pick = plan_stance(table, x, y, yaw_of(quat), config)
+    place_table = table_under(tables, goal.place_x, goal.place_y)
+    place = None if place_table is None else plan_stance(place_table, goal.place_x, goal.place_y, goal.place_yaw, config)
+    if place_table is None or place is None or not _fits(place_table, goal.place_x, goal.place_y, place.yaw, half):
+        raise InvalidGoalError(f"place ({goal.place_x:.2f}, {goal.place_y:.2f}) does not keep {goal.object_name!r} "
+                               "whole on a table top; table tops: " + ", ".join(_bounds(t) for t in tables))
+    inflated = grid.inflated(NAVIGATION_INFLATION_M)
+    for stance, what in ((pick, "the object"), (place, "the place")):
+        if not inflated.is_free(stance.approach_x, stance.approach_y):
+            raise InvalidGoalError(f"the approach to {what} ({stance.approach_x:.2f}, {stance.approach_y:.2f}) is "
+                                   "blocked by an obstacle")
+    center = np.array([goal.place_x, goal.place_y, place_table.height + float(half[2])])
+    return FetchPlan(body, half, mass, pick, place, center, place_table.height, table.height)
+
+
+def _bounds(table: Obstacle) -> str:
+    (cx, cy), (hx, hy) = table.center_xy, table.half_size_xy
+    return f"{table.name} x [{cx - hx:.2f}, {cx + hx:.2f}] y [{cy - hy:.2f}, {cy + hy:.2f}]"
+
+
+def _fits(table: Obstacle, x: float, y: float, yaw: float, half: np.ndarray) -> bool:
+    """Whether a box of half sizes ``half`` centred at (x, y) with ``yaw`` lies within the table's top."""
+    relative = yaw - table.yaw
+    c, s = abs(math.cos(relative)), abs(math.sin(relative))
+    extent_x, extent_y = c * half[0] + s * half[1], s * half[0] + c * half[1]
+    dx, dy = x - table.center_xy[0], y - table.center_xy[1]
+    local_x = math.cos(table.yaw) * dx + math.sin(table.yaw) * dy
+    local_y = -math.sin(table.yaw) * dx + math.cos(table.yaw) * dy
+    return abs(local_x) + extent_x <= table.half_size_xy[0] and abs(local_y) + extent_y <= table.half_size_xy[1]
+
+
+def heading_error(stance: Stance, yaw: float) -> float:
+    """Signed difference from the stance heading to ``yaw`` [rad]."""
+    return wrap(yaw - stance.yaw)

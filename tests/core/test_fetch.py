@@ -1,0 +1,206 @@
+"""The G1 fetches the box with both palms: walk, squeeze, lift, carry, place (issue 21, item 3, in the core)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+import pytest
+
+import robot_models
+from robot_models import g1_tables
+from sim_bridge import Simulation
+from sim_bridge.arm import ArmController, PickPlaceStage
+from sim_bridge.controller import Slot
+from sim_bridge.errors import InvalidGoalError, UnknownNameError
+from sim_bridge.fetch import FetchGoal, FetchSkill, StanceConfig, plan_stance
+from sim_bridge.fetch.bimanual import grip_forces, palms_of, tilt_of
+from sim_bridge.locomotion import LocomotionMode, WalkingController
+from sim_bridge.navigation import grid_from_obstacles
+from sim_bridge.skills import SkillHost, SkillRun, SkillStatus
+
+PLACE = (1.02, -2.8)  # on the second table, 12 cm inside its edge facing the robot's side
+MAX_SIM_S = 150.0
+
+
+@dataclass
+class Rig:
+    robot: robot_models.RobotSpec
+    sim: Simulation
+    walker: WalkingController
+    legs: SkillHost
+    arms: ArmController
+
+
+@dataclass
+class Trace:
+    stages: list[int] = field(default_factory=list)
+    min_grip_while_carried: float = math.inf
+    fallen: bool = False
+    final_mode: LocomotionMode | None = None
+
+
+@pytest.fixture(scope="module")
+def robot() -> robot_models.RobotSpec:
+    return robot_models.load(robot_models.G1, "tables")
+
+
+def _rig(robot: robot_models.RobotSpec) -> Rig:
+    sim = Simulation(robot)
+    walker = WalkingController(sim.model, robot.biped)
+    legs = SkillHost(walker)
+    sim.set_controller(Slot.LOCOMOTION, legs)
+    arms = ArmController(robot)
+    sim.set_controller(Slot.ARM, arms)
+    return Rig(robot, sim, walker, legs, arms)
+
+
+def _skill(rig: Rig, goal: FetchGoal) -> FetchSkill:
+    return FetchSkill(rig.robot, rig.walker, rig.arms, grid_from_obstacles(rig.robot.obstacles), goal)
+
+
+def _run(rig: Rig, skill: FetchSkill, run: SkillRun, trace: Trace, until: float = MAX_SIM_S) -> None:
+    sim = rig.sim
+    while run.status is SkillStatus.RUNNING and sim.time < until:
+        sim.step(1)
+        if run.status is SkillStatus.RUNNING:
+            if not trace.stages or trace.stages[-1] != skill.milestone:
+                trace.stages.append(skill.milestone)
+            if skill.milestone == PickPlaceStage.TRANSPORT:
+                trace.min_grip_while_carried = min(trace.min_grip_while_carried, float(skill.feedback(sim.data)["grip_force"]))
+        trace.fallen = trace.fallen or rig.walker.status().fallen
+
+
+@pytest.fixture(scope="module")
+def idle_rig(robot) -> Rig:
+    """A rig at its keyframe, for goals refused before anything moves."""
+    return _rig(robot)
+
+
+@pytest.fixture(scope="module")
+def fetched(robot):
+    rig = _rig(robot)
+    skill = _skill(rig, FetchGoal("box", *PLACE))
+    run = rig.legs.start(1, skill, rig.sim.model, rig.sim.data)
+    trace = Trace()
+    _run(rig, skill, run, trace)
+    trace.final_mode = rig.walker.status().mode
+    _release(rig)
+    return rig, skill, run, trace
+
+
+def _release(rig: Rig) -> None:
+    """Hand the legs back to their servos: the robot's model is shared by the module's simulations."""
+    rig.sim.set_controller(Slot.LOCOMOTION, None)
+
+
+def test_the_g1_fetches_the_box_to_the_second_table(fetched):
+    rig, skill, run, trace = fetched
+    assert run.outcome is not None and run.status is SkillStatus.SUCCEEDED, (run.outcome, skill.events)
+    box = rig.sim.data.body("box")
+    place = np.array([*PLACE, g1_tables.PLACE_TABLE.top_z + g1_tables.BOX.half_size[2]])
+    error = float(np.linalg.norm(box.xpos - place))
+    assert error <= 0.02, f"placed {error * 1e3:.1f} mm from the place"
+    assert math.degrees(tilt_of(box.xquat)) < 2.0, "the box rests level"
+    assert run.final_result["placement_error"] == pytest.approx(error, abs=2e-3)
+    assert not trace.fallen and trace.final_mode is LocomotionMode.STANDING
+    assert trace.min_grip_while_carried > 5.0, "both palms squeezed the box all the way (friction only)"
+    forces = grip_forces(rig.sim.model, rig.sim.data, palms_of(rig.robot), rig.sim.model.body("box").id)
+    assert max(forces) == 0.0, "the palms let go"
+    for item in (g1_tables.CUBE, g1_tables.CAN):  # the other objects stay where they were
+        rest = np.asarray(g1_tables.object_rest_position(item))
+        assert np.linalg.norm(rig.sim.body_pose(item.name).position - rest) < 0.01
+
+
+def test_the_fetch_reports_every_stage_in_order(fetched):
+    _, skill, run, trace = fetched
+    assert trace.stages == sorted(trace.stages), trace.stages
+    assert trace.stages == [int(stage) for stage in PickPlaceStage], skill.events
+    feedback = run.final_feedback
+    assert feedback["stage_name"] == "RETREAT" and feedback["percent_complete"] == pytest.approx(100.0)
+    assert set(feedback) >= {"object_pose", "grip_force", "distance_remaining", "elapsed", "stage_progress"}
+
+
+@pytest.mark.parametrize(("goal", "error", "match"), [
+    (FetchGoal("ball", *PLACE), UnknownNameError, "objects: box, cube, can"),
+    (FetchGoal("cube", *PLACE), InvalidGoalError, "wide across its grip axis"),
+    (FetchGoal("box", 0.0, -2.8), InvalidGoalError, "not .*on a table top|does not keep"),
+    (FetchGoal("box", 1.2, -2.8), InvalidGoalError, "no stance at table_1 reaches"),
+    (FetchGoal("box", *PLACE, grip_force_n=1.0), InvalidGoalError, "too weak"),
+])
+def test_bad_goals_are_refused_with_the_reason(idle_rig, goal, error, match):
+    rig = idle_rig
+    with pytest.raises(error, match=match):
+        _skill(rig, goal).start(rig.sim.model, rig.sim.data)
+    run = rig.legs.start(7, _skill(rig, goal), rig.sim.model, rig.sim.data)
+    assert run.status is SkillStatus.ABORTED and run.outcome is not None and run.outcome.code == "INVALID_GOAL"
+
+
+def test_an_object_off_the_tables_or_a_bad_value_is_refused(robot):
+    rig = _rig(robot)
+    with pytest.raises(InvalidGoalError, match="finite"):
+        FetchGoal("box", math.nan, -2.8)
+    adr = int(robot.model.joint("box").qposadr[0])
+    rig.sim.data.qpos[adr:adr + 3] = [0.5, 1.5, 0.075]  # on the floor
+    mujoco.mj_forward(rig.sim.model, rig.sim.data)
+    with pytest.raises(InvalidGoalError, match="does not rest upright on a table top"):
+        _skill(rig, FetchGoal("box", *PLACE)).start(rig.sim.model, rig.sim.data)
+
+
+def test_a_stance_faces_the_nearest_edge_and_a_deep_point_has_none(robot):
+    first, second = robot.obstacles
+    config = StanceConfig()
+    stance = plan_stance(first, 1.02, 0.0, 0.0, config)
+    assert (stance.x, stance.y, stance.yaw) == pytest.approx((1.02 - config.reach_m, 0.0, 0.0))
+    assert stance.approach_x == pytest.approx(first.center_xy[0] - first.half_size_xy[0] - config.approach_edge_m)
+    side = plan_stance(second, 1.2, -2.3, None, config)  # near the second table's +y edge: stand beyond it, face -y
+    assert side.yaw == pytest.approx(-math.pi / 2) and side.y == pytest.approx(-2.3 + config.reach_m)
+    with pytest.raises(InvalidGoalError, match="inside the edge"):
+        plan_stance(first, 1.2, 0.0, 0.0, config)
+
+
+def test_cancel_while_carrying_stops_and_stands_holding_the_box(robot):
+    rig = _rig(robot)
+    skill = _skill(rig, FetchGoal("box", *PLACE))
+    run = rig.legs.start(3, skill, rig.sim.model, rig.sim.data)
+    trace = Trace()
+    sim = rig.sim
+    while run.status is SkillStatus.RUNNING and sim.time < MAX_SIM_S:
+        sim.step(1)
+        if skill.stage is PickPlaceStage.TRANSPORT and skill.feedback(sim.data)["phase"] == "navigate_place":
+            break
+    sim.step(round(2.0 / sim.control_timestep))  # walking with the box
+    assert run.status is SkillStatus.RUNNING and rig.walker.status().mode is LocomotionMode.WALKING
+    rig.legs.cancel("legs", 3)
+    _run(rig, skill, run, trace, until=sim.time + 15.0)
+    assert run.outcome is not None and run.status is SkillStatus.CANCELED, run.outcome
+    assert "holding the object" in run.outcome.message
+    sim.step(round(2.0 / sim.control_timestep))
+    assert rig.walker.status().mode is LocomotionMode.STANDING and not trace.fallen
+    box = sim.data.body("box")
+    assert box.xpos[2] > g1_tables.TABLE_TOP_Z_M + 0.1, "still held up"
+    assert min(grip_forces(sim.model, sim.data, palms_of(robot), sim.model.body("box").id)) > 5.0
+    _release(rig)
+
+
+def test_an_object_that_leaves_the_palms_while_carried_ends_the_fetch_as_dropped(robot):
+    rig = _rig(robot)
+    skill = _skill(rig, FetchGoal("box", *PLACE))
+    run = rig.legs.start(4, skill, rig.sim.model, rig.sim.data)
+    sim = rig.sim
+    while run.status is SkillStatus.RUNNING and skill.stage < PickPlaceStage.TRANSPORT:
+        sim.step(1)
+    sim.step(100)
+    assert run.status is SkillStatus.RUNNING and skill.stage is PickPlaceStage.TRANSPORT
+    adr, dof = int(robot.model.joint("box").qposadr[0]), int(robot.model.joint("box").dofadr[0])
+    sim.data.qpos[adr:adr + 3] = [sim.data.qpos[0] - 0.6, sim.data.qpos[1] + 0.8, g1_tables.BOX.half_size[2]]  # gone
+    sim.data.qvel[dof:dof + 6] = 0.0
+    mujoco.mj_forward(sim.model, sim.data)
+    _run(rig, skill, run, Trace(), until=sim.time + 2.0)
+    assert run.outcome is not None and run.outcome.code == "OBJECT_DROPPED", run.outcome
+    assert "lies at" in run.outcome.message and "TRANSPORT" in run.outcome.message
+    sim.step(round(3.0 / sim.control_timestep))
+    assert rig.walker.status().mode is LocomotionMode.STANDING, "the robot stopped"
+    _release(rig)
