@@ -71,7 +71,8 @@ def test_a_g1_under_r1_and_another_robot_under_r2_share_a_domain_without_cross_t
         r1_now = sim_now(client, "g1", sim="/r1/sim")
         client.wait_for(lambda: seconds(odom["r1"].latest) >= r1_now, 30.0, "r1's odometry up to now")
         assert math.dist(start["r1"], xy(odom["r1"].latest)) == pytest.approx(0.6, abs=0.06), "r1 walked"
-        assert math.dist(start["r2"], xy(odom["r2"].latest)) < 0.01, "r2 stood still"
+        # r2 was reset meanwhile: it stands up again from its keyframe, settling by about a centimetre
+        assert math.dist(start["r2"], xy(odom["r2"].latest)) < 0.05, "r2 stood still (r1 walked 0.6 m)"
         assert r1.alive() and r2.alive()
 
 
