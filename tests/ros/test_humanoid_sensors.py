@@ -146,7 +146,7 @@ def test_reset_pose_after_a_walk_returns_to_the_default_posture(client, g1, walk
 def test_hand_calibration_zeroes_the_wrist_wrench_and_is_refused_while_walking(client, g1, walk):
     wrench = client.record(WrenchStamped, "/right_wrist/wrench", keep=2000)
     t = reset(client)
-    before = after(wrench, t + 1.0, 5, client, "/right_wrist/wrench")
+    before = after(wrench, t + 3.0, 5, client, "/right_wrist/wrench")  # the arms, with the hands, settle after a reset
     assert np.linalg.norm([before[-1].wrench.force.x, before[-1].wrench.force.y, before[-1].wrench.force.z]) > 1.0, \
         "uncalibrated: the hand's weight and the sensor's offset"
     def calibration() -> object | None:

@@ -98,7 +98,7 @@ def test_a_client_of_a_killed_server_gets_a_result_and_the_restarted_server_serv
             assert final.status == GoalStatus.STATUS_SUCCEEDED, final.result.error_msg
             return True
 
-        client.wait_for(next_goal_succeeds, READY_S, f"a goal to the restarted {executable} to succeed", poll=1.0)
+        client.wait_for(next_goal_succeeds, 2 * READY_S, f"a goal to the restarted {executable} to succeed", poll=1.0)
         assert bringup.alive()
     finally:
         assert bringup.stop(timeout=30.0) == 0
