@@ -265,7 +265,7 @@ class SceneEntities:
         if self.get(name).kind is EntityKind.ROBOT:
             bodies = {b for b in range(1, model.nbody) if int(model.body_rootid[b]) == root}
         else:
-            bodies = {b for b in range(1, model.nbody) if _descends(model, b, handle.body_id)}
+            bodies = {b for b in range(1, model.nbody) if descends(model, b, handle.body_id)}
         geoms = [g for g in range(model.ngeom) if int(model.geom_bodyid[g]) in bodies]
         colliding = [g for g in geoms if model.geom_contype[g] or model.geom_conaffinity[g]]
         return colliding or geoms
@@ -306,7 +306,8 @@ def _free_joint(model: mujoco.MjModel, body: int) -> tuple[int, int] | None:
     return int(model.jnt_qposadr[joint]), int(model.jnt_dofadr[joint])
 
 
-def _descends(model: mujoco.MjModel, body: int, ancestor: int) -> bool:
+def descends(model: mujoco.MjModel, body: int, ancestor: int) -> bool:
+    """Whether ``body`` is ``ancestor`` or below it in the model's tree."""
     while body > 0:
         if body == ancestor:
             return True

@@ -20,6 +20,7 @@ import numpy as np
 
 from robot_models import RobotSpec
 from sim_bridge.arm.poses import mat_to_quat, quat_to_mat
+from sim_bridge.entities import descends
 from sim_bridge.errors import InvalidGoalError, UnknownNameError
 from sim_bridge.state import Pose
 
@@ -70,7 +71,7 @@ def palms_of(robot: RobotSpec) -> tuple[Palm, Palm]:
         tool_rotation = tool.xmat.reshape(3, 3)
         side = 1.0 if float((base_rotation.T @ (palm.xpos - base.xpos))[1]) > 0.0 else -1.0
         hand = int(model.site_bodyid[model.site(palm_site).id])
-        bodies = frozenset(b for b in range(model.nbody) if _descends(model, b, hand))
+        bodies = frozenset(b for b in range(model.nbody) if descends(model, b, hand))
         found.append(Palm(arm, side, tool_rotation.T @ (palm.xpos - tool.xpos), tool_rotation.T @ palm.xmat.reshape(3, 3),
                           bodies))
     left, right = sorted(found, key=lambda p: -p.side)
@@ -93,12 +94,6 @@ def set_palm_hand_pose(robot: RobotSpec, model: mujoco.MjModel, data: mujoco.MjD
         data.ctrl[actuator] = angle
 
 
-def _descends(model: mujoco.MjModel, body: int, ancestor: int) -> bool:
-    while body > 0:
-        if body == ancestor:
-            return True
-        body = int(model.body_parentid[body])
-    return False
 
 
 def tool_target(palm: Palm, center: np.ndarray, yaw: float, half_width: float, depth: float, pitch: float = 0.0) -> Pose:
