@@ -7,7 +7,7 @@ STAMPS := $(VENV)/.stamps
 INTERFACE_FILES := $(shell find interfaces -type f)
 export MUJOCO_GL ?= egl
 
-.PHONY: setup lint demo test test-fast bench bench-sim bench-walk bench-arm bench-nav bench-idle bench-scenario bench-response bench-locomotion bench-sensors bench-soak bench-camera clean
+.PHONY: setup lint demo test test-fast bench bench-sim bench-walk bench-arm bench-nav bench-idle bench-scenario bench-response bench-locomotion bench-sensors bench-soak bench-camera bench-fetch clean
 
 setup: $(STAMPS)/project
 
@@ -70,6 +70,9 @@ bench-idle: setup
 
 bench-scenario: setup
 	$(PY) benchmarks/scenario_bench.py
+
+bench-fetch: setup  ## the G1 fetches the box over 50 seeded layouts (core, no ROS)
+	$(PY) benchmarks/fetch_bench.py
 
 clean:
 	rm -rf $(VENV) build

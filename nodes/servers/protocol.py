@@ -27,6 +27,7 @@ from sim_bridge.arm import PickPlaceGoal
 from sim_bridge.arm.pick_place import min_grip_force_n, place_problem
 from sim_bridge.battery import Battery
 from sim_bridge.errors import InvalidGoalError
+from sim_bridge.fetch import FetchGoal, FetchSkill, check_fetchable, check_place_on_a_table
 from sim_bridge.frames import check_frame, is_world, to_world
 from sim_bridge.skills import LEGS, NavigateGoal, NavigateSkill, Skill, SkillOutcome, Values, WalkGoal, WalkSkill
 from sim_bridge.skills.arm import MoveArmGoal, MoveArmSkill, PickPlaceSkill
@@ -191,6 +192,8 @@ def _build_move(goal: MoveArm.Goal, settings: Mapping[str, float], context: Skil
 
 
 def _validate_pick(goal: PickPlace.Goal, robot: RobotSpec) -> str:
+    if fetches(robot):
+        return _validate_fetch(goal, robot)
     if not robot.objects or robot.grasp is None:
         raise InvalidGoalError(f"robot {robot.name!r} has " + ("no grippers to pick objects with" if robot.objects
                                                                  else "no objects to pick"))
@@ -228,6 +231,69 @@ def _validate_pick(goal: PickPlace.Goal, robot: RobotSpec) -> str:
     return arm
 
 
+# ----- PickPlace on a walking robot with palms: the whole fetch (walk, squeeze, carry, place) -------------
+FETCH_DEFAULTS = FetchGoal("", 0.0, 0.0)  # grip force, lift height, timeout when a goal gives 0
+
+
+def fetches(robot: RobotSpec) -> bool:
+    """Whether PickPlace on this robot is a fetch: it walks and holds objects between its palms."""
+    return bool(robot.palms) and robot.walking is not None
+
+
+def _pick_resource(goal: PickPlace.Goal, robot: RobotSpec) -> str:
+    """A fetch owns the legs (and drives both arms); a fixed arm's pick owns that arm."""
+    return LEGS if fetches(robot) else arm_name(goal.end_effector, robot)
+
+
+def _validate_fetch(goal: PickPlace.Goal, robot: RobotSpec) -> str:
+    if not robot.objects:
+        raise InvalidGoalError(f"robot {robot.name!r} has no objects to pick in this scene (scene 'tables' has a box "
+                               "on a table: bringup --scene tables)")
+    if goal.end_effector:
+        raise InvalidGoalError(f"robot {robot.name!r} picks with both palms: leave end_effector empty "
+                               f"(got {goal.end_effector!r})")
+    _finite_numbers(grasp_force=goal.grasp_force, approach_height=goal.approach_height, lift_height=goal.lift_height,
+                    timeout=goal.timeout)
+    if goal.approach_height != 0.0:
+        raise InvalidGoalError(f"approach_height is a fixed arm's; robot {robot.name!r} plans its own stances: "
+                               f"leave it 0 (got {goal.approach_height})")
+    for name, value in (("grasp_force", goal.grasp_force), ("lift_height", goal.lift_height), ("timeout", goal.timeout)):
+        if value < 0.0:
+            raise InvalidGoalError(f"{name} must be >= 0 (0 = the default), got {value}")
+    task = FetchGoal("", 0.0, 0.0, grip_force_n=goal.grasp_force or FETCH_DEFAULTS.grip_force_n,
+                     lift_height_m=goal.lift_height or FETCH_DEFAULTS.lift_height_m,
+                     timeout_s=goal.timeout or FETCH_DEFAULTS.timeout_s)  # checks the ranges
+    if goal.object_id:
+        check_fetchable(robot, goal.object_id, task.grip_force_n)
+    else:
+        p = goal.pick_pose.pose.position
+        if not all(math.isfinite(v) for v in (p.x, p.y, p.z)):
+            raise InvalidGoalError("give object_id, or a finite pick_pose")
+        check_frame(goal.pick_pose.header.frame_id, robot, "pick_pose")
+    p, o = goal.place_pose.pose.position, goal.place_pose.pose.orientation
+    if not all(math.isfinite(v) for v in (p.x, p.y, p.z, o.x, o.y, o.z, o.w)):
+        raise InvalidGoalError("place_pose has NaN or infinite values")
+    check_frame(goal.place_pose.header.frame_id, robot, "place_pose")
+    if is_world(goal.place_pose.header.frame_id):  # in another frame it is judged in /sim, from the frame's pose
+        check_place_on_a_table(robot, p.x, p.y)
+    return LEGS
+
+
+def _build_fetch(goal: PickPlace.Goal, context: SkillContext) -> Skill:
+    _validate_fetch(goal, context.robot)
+    name = goal.object_id or _object_at(goal, context.sim)
+    place = _in_world(goal.place_pose.pose, goal.place_pose.header.frame_id, context.sim)
+    o = goal.place_pose.pose.orientation
+    identity = (o.x, o.y, o.z) == (0.0, 0.0, 0.0)  # no yaw asked: square to the table's edge
+    task = FetchGoal(name, float(place.position[0]), float(place.position[1]),
+                     None if identity else yaw_of(place.orientation_wxyz),
+                     grip_force_n=goal.grasp_force or FETCH_DEFAULTS.grip_force_n,
+                     lift_height_m=goal.lift_height or FETCH_DEFAULTS.lift_height_m,
+                     timeout_s=goal.timeout or FETCH_DEFAULTS.timeout_s)
+    check_fetchable(context.robot, name, task.grip_force_n)  # an object picked by pick_pose is judged here
+    return _guarded(FetchSkill(context.robot, context.walker, context.arms, context.grid, task), context)
+
+
 def _object_at(goal: PickPlace.Goal, sim: Simulation) -> str:
     """The object whose centre is within PICK_POSE_RADIUS_M of the goal's pick_pose."""
     pick = _in_world(goal.pick_pose.pose, goal.pick_pose.header.frame_id, sim).position
@@ -240,6 +306,8 @@ def _object_at(goal: PickPlace.Goal, sim: Simulation) -> str:
 
 
 def _build_pick(goal: PickPlace.Goal, settings: Mapping[str, float], context: SkillContext) -> Skill:
+    if fetches(context.robot):
+        return _build_fetch(goal, context)
     arm = _validate_pick(goal, context.robot)
     if context.pick_place is None:
         raise InvalidGoalError(f"robot {context.robot.name!r} has no objects to pick")
@@ -261,8 +329,7 @@ BINDINGS: dict[str, SkillBinding] = {
         SkillBinding("navigate_to_pose", NavigateToPose, lambda _goal, _robot: LEGS, _navigate_goal, _build_navigate),
         SkillBinding("reset_pose", ResetPose, lambda _goal, _robot: LEGS, _reset_pose_goal, _build_reset_pose),
         SkillBinding("move_arm", MoveArm, lambda goal, robot: arm_name(goal.end_effector, robot), _validate_move, _build_move),
-        SkillBinding("pick_place", PickPlace, lambda goal, robot: arm_name(goal.end_effector, robot), _validate_pick,
-                     _build_pick),
+        SkillBinding("pick_place", PickPlace, _pick_resource, _validate_pick, _build_pick),
     )
 }
 

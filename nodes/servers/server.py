@@ -44,7 +44,9 @@ SIM_MATCH_S = 10.0  # wall seconds a server waits at start-up for /sim's goal to
 RESEND_PERIOD_S = 0.1  # a START not yet reported is sent again (a message sent before discovery is lost)
 # /sim publishes each running goal's state at least every 0.2 s of wall time, paused or not
 # (nodes.sim.skills.HEARTBEAT_PERIOD_S): this long without a word, it has stopped or died.
-SIM_SILENCE_S = 1.8
+# 5 s, not 2: on a loaded 2-core machine a running /sim was seen silent for 1.9 s (a fresh-clone test run
+# beside four other simulations), and a goal ended SIM_FAULT though /sim lived.
+SIM_SILENCE_S = 5.0
 # The watchdog runs every RESEND_PERIOD_S; a longer gap means this server itself was starved of CPU
 # (states from /sim may be queued unread): the gap is not counted as /sim's silence.
 STARVED_GAP_S = 0.5
@@ -53,6 +55,9 @@ STARVED_GAP_S = 0.5
 # request reader: with ROS's services default (keep-last 10), a burst the executor has not yet taken
 # overwrites its oldest requests, which are then never answered.
 SERVICE_QOS = QoSProfile(depth=1000)
+# Feedback of a fast (unpaced) sim comes in bursts: a writer history of ROS's default 10 would drop the
+# feedback of a short stage before a slow client acknowledged it. A client that keeps as many gets each one.
+FEEDBACK_QOS = QoSProfile(depth=100)
 GOODBYE_WALL_S = 2.0  # [s] a stopping server spends at most this long getting its goals' results out
 RESULT_GRACE_S = 0.2  # [s] after its goals' callbacks returned, for the result responses to go out
 _TERMINAL = frozenset((SkillState.SUCCEEDED, SkillState.ABORTED, SkillState.CANCELED))
@@ -111,7 +116,7 @@ class SkillActionServer:
             node, binding.action_type, action_name, execute_callback=self._execute, goal_callback=self._accept,
             handle_accepted_callback=lambda handle: handle.execute(), cancel_callback=self._cancel, callback_group=group,
             goal_service_qos_profile=SERVICE_QOS, result_service_qos_profile=SERVICE_QOS,
-            cancel_service_qos_profile=SERVICE_QOS)
+            cancel_service_qos_profile=SERVICE_QOS, feedback_pub_qos_profile=FEEDBACK_QOS)
         # Runs only while goals run (an idle server has no timer firing).
         self._watchdog_timer = node.create_timer(RESEND_PERIOD_S, self._watchdog, callback_group=group,
                                                  clock=Clock(clock_type=ClockType.STEADY_TIME))

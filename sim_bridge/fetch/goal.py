@@ -102,6 +102,41 @@ def _box_of(model: mujoco.MjModel, body: int, name: str) -> np.ndarray:
     return model.geom_size[boxes[0]].copy()
 
 
+def check_fetchable(robot: RobotSpec, name: str, grip_force_n: float) -> tuple[int, np.ndarray]:
+    """Judge, from the model alone, whether the palms can hold object ``name`` with ``grip_force_n`` per palm.
+
+    Returns its body id and its box's half sizes [m].
+
+    Raises:
+        UnknownNameError: not an object of the scene (the message lists them).
+        InvalidGoalError: not a box, too narrow or wide for the palms, or the grip too weak for its weight.
+    """
+    model = robot.model
+    if name not in robot.objects:
+        raise UnknownNameError(f"unknown object {name!r}; objects: {', '.join(robot.objects) or 'none'}")
+    body = model.body(name).id
+    half = _box_of(model, body, name)
+    width = 2.0 * float(half[1])
+    if not MIN_GRIP_WIDTH_M <= width <= MAX_GRIP_WIDTH_M:
+        raise InvalidGoalError(f"object {name!r} is {width:.3f} m wide across its grip axis (y): the palms "
+                               f"hold {MIN_GRIP_WIDTH_M:.2f}-{MAX_GRIP_WIDTH_M:.2f} m")
+    mass = float(model.body_mass[body])
+    mu = float(max(model.geom_friction[g][0] for g in range(model.ngeom) if int(model.geom_bodyid[g]) == body))
+    gravity = float(np.linalg.norm(model.opt.gravity))
+    if 2.0 * mu * grip_force_n < GRIP_SAFETY * mass * gravity:
+        least = GRIP_SAFETY * mass * gravity / (2.0 * mu)
+        raise InvalidGoalError(f"a grip of {grip_force_n:.1f} N per palm is too weak for {name!r} "
+                               f"({mass:.2f} kg): at least {least:.1f} N")
+    return body, half
+
+
+def check_place_on_a_table(robot: RobotSpec, x: float, y: float) -> None:
+    """Raise :class:`InvalidGoalError` (naming the table tops) unless (x, y) [m, world] is on a table top."""
+    if table_under(robot.obstacles, x, y) is None:
+        raise InvalidGoalError(f"place ({x:.2f}, {y:.2f}) is not on a table top; table tops: "
+                               + (", ".join(_bounds(t) for t in robot.obstacles) or "none"))
+
+
 def plan_fetch(robot: RobotSpec, data: mujoco.MjData, goal: FetchGoal, grid: OccupancyGrid,
                config: StanceConfig) -> FetchPlan:
     """Judge the goal in the current state and plan its stances.
@@ -111,22 +146,8 @@ def plan_fetch(robot: RobotSpec, data: mujoco.MjData, goal: FetchGoal, grid: Occ
         InvalidGoalError: the object is not a box the palms can hold, does not rest on a table top, no
             stance reaches it, or the place is not on a table top or out of reach (the message says why).
     """
-    model = robot.model
-    if goal.object_name not in robot.objects:
-        raise UnknownNameError(f"unknown object {goal.object_name!r}; objects: {', '.join(robot.objects) or 'none'}")
-    body = model.body(goal.object_name).id
-    half = _box_of(model, body, goal.object_name)
-    width = 2.0 * float(half[1])
-    if not MIN_GRIP_WIDTH_M <= width <= MAX_GRIP_WIDTH_M:
-        raise InvalidGoalError(f"object {goal.object_name!r} is {width:.3f} m wide across its grip axis (y): the palms "
-                               f"hold {MIN_GRIP_WIDTH_M:.2f}-{MAX_GRIP_WIDTH_M:.2f} m")
-    mass = float(model.body_mass[body])
-    mu = float(max(model.geom_friction[g][0] for g in range(model.ngeom) if int(model.geom_bodyid[g]) == body))
-    gravity = float(np.linalg.norm(model.opt.gravity))
-    if 2.0 * mu * goal.grip_force_n < GRIP_SAFETY * mass * gravity:
-        least = GRIP_SAFETY * mass * gravity / (2.0 * mu)
-        raise InvalidGoalError(f"a grip of {goal.grip_force_n:.1f} N per palm is too weak for {goal.object_name!r} "
-                               f"({mass:.2f} kg): at least {least:.1f} N")
+    body, half = check_fetchable(robot, goal.object_name, goal.grip_force_n)
+    mass = float(robot.model.body_mass[body])
     tables = robot.obstacles
     position, quat = data.xpos[body], data.xquat[body]
     x, y, z = (float(v) for v in position)

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import replace
 
 import mujoco
 import numpy as np
@@ -37,11 +38,12 @@ from sim_bridge.fetch.grip import GripConfig
 from sim_bridge.fetch.stance import Stance, StanceConfig, wrap
 from sim_bridge.locomotion import WalkingController
 from sim_bridge.navigation import OccupancyGrid
-from sim_bridge.skills.base import SkillOutcome, Values
+from sim_bridge.skills.base import GoalVisuals, SkillOutcome, Values, visuals_of
 from sim_bridge.skills.locomotion import LEGS, NavigateGoal, NavigateSkill, WalkGoal, WalkSkill
 from sim_bridge.state import Pose
 
 Stage = PickPlaceStage
+PASSED_ON = ("FELL", "TIMEOUT", "BATTERY_LOW")  # a walk's failures the fetch ends with as they are
 
 
 class FetchSkill:
@@ -119,6 +121,18 @@ class FetchSkill:
     def update_settings(self, settings: Mapping[str, float]) -> None:
         """Nothing of a running fetch changes with the server's parameters."""
 
+    def visuals(self) -> GoalVisuals:
+        """The place (world frame), and while walking the walk's own path, goal pose and footsteps."""
+        plan = self.plan
+        inner = visuals_of(self._walk) if self._walk is not None else None
+        target = None
+        if plan is not None:
+            x, y, z = (float(v) for v in plan.place_center)
+            target = (x, y, z)
+        if inner is None:
+            return GoalVisuals(target_xyz=target)
+        return replace(inner, target_xyz=target)
+
     def update(self, model: mujoco.MjModel, data: mujoco.MjData, control_dt: float) -> SkillOutcome | None:
         self._now = float(data.time)
         plan = self.plan
@@ -154,7 +168,9 @@ class FetchSkill:
             self._walk = None
             if outcome.code != "SUCCESS":
                 self._hold_arms()
-                return SkillOutcome.aborted(outcome.code, f"{self._phase}: {outcome.message}")
+                # A walk that finds no way (no path, its goal inside an obstacle) leaves the object unreachable.
+                code = outcome.code if outcome.code in PASSED_ON else "UNREACHABLE"
+                return SkillOutcome.aborted(code, f"{self._phase}: {outcome.message}")
         self._regulate(model, data)
         if self._phase in ("reach", "squeeze", "lift", "over_place", "lower", "release", "raise"):
             unreachable = self._unreachable()

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from rclpy.action import ActionClient
+from rclpy.qos import QoSProfile
 
 from sim_client import RosSession
 from sim_client.actions import wait_until_answering
@@ -72,8 +73,10 @@ def wait_feedback(session: RosSession, sent: Sent, predicate: Callable[[Any], bo
 
 
 def ready_client(session: RosSession, action_type: Any, name: str, timeout: float = 60.0) -> ActionClient:
-    """A plain rclpy ActionClient whose server has answered it (a cancel and a result request: both ways matched)."""
-    client = ActionClient(session.node, action_type, name)
+    """A plain rclpy ActionClient whose server has answered it (a cancel and a result request: both ways matched).
+
+    It keeps 100 feedback messages, as the servers' writers do: an unpaced sim's feedback comes in bursts."""
+    client = ActionClient(session.node, action_type, name, feedback_sub_qos_profile=QoSProfile(depth=100))
     wait_until_answering(session, client, timeout)
     return client
 

@@ -87,8 +87,8 @@ def test_a_good_file_loads_into_typed_values(tmp_path):
         (GOOD.replace("  - wait: {duration: 0.5}", "  - cmd_vel: {vx: 0.1, duration: 1}"), 4, "robot panda has none"),
         (GOOD.replace("  - wait: {duration: 0.5}",
                       "  - send_goal: {id: p, action: pick_place, goal: {object: box_0, place: [0, 0, 0]}}")
-         + "  - name: fell\n    outcome: {goal: p, error_code: FELL}\n", 10,
-         "pick_place has no error code 'FELL'; it has: SUCCESS"),
+         + "  - name: no path\n    outcome: {goal: p, error_code: NO_VALID_PATH}\n", 10,
+         "pick_place has no error code 'NO_VALID_PATH'; it has: SUCCESS"),
         (GOOD.replace("    measure: {object_position: {object: box_0, axis: z}}", "    measure: {feedback: {field: x}}"), 7,
          "measure feedback: missing required key 'goal'"),
         (GOOD.replace("  - wait: {duration: 0.5}", "  - wait: {durration: 0.5}"), 4,
@@ -125,13 +125,13 @@ def test_robot_facts_and_error_codes_come_from_their_sources_not_copies():
     assert actions.actions_of(robots.robot_facts("panda")) == ("move_arm", "pick_place")
     tables = robots.robot_facts("g1", "tables")
     assert tables.objects == robot_models.load("g1", "tables").objects and tables.default_scene == "open"
-    assert actions.actions_of(tables) == ("walk", "navigate", "move_arm"), "objects, but no grippers to pick them with"
+    assert actions.actions_of(tables) == ("walk", "navigate", "move_arm", "pick_place"), "objects and palms: a fetch"
     for action, action_type in (("walk", Walk), ("navigate", NavigateToPose), ("move_arm", MoveArm), ("pick_place", PickPlace)):
         names = actions.ACTIONS[action].error_names
         assert names[0] == "SUCCESS" and "INVALID_GOAL" in names
         assert all(getattr(action_type.Result, n) == i for i, n in enumerate(names)), "error codes in value order"
     assert "GOAL_IN_OBSTACLE" in actions.ACTIONS["navigate"].error_names
-    assert "PLACEMENT_FAILED" in actions.ACTIONS["pick_place"].error_names
+    assert "PLACEMENT_FAILED" in actions.ACTIONS["pick_place"].error_names and "FELL" in actions.ACTIONS["pick_place"].error_names
 
 
 EVERY_STEP = """\

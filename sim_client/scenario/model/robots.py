@@ -24,7 +24,7 @@ class RobotFacts:
         objects: free bodies a scenario may measure and pick (boxes), in the scene the facts were read from.
         arms: arm names a move_arm goal may name.
         walks: whether it has feet (a floating base that walks: /cmd_vel, walk, navigate).
-        grips: whether it has grippers to pick objects with.
+        grips: whether it can pick objects: grippers (a fixed arm) or palms on a walking robot (a fetch).
     """
 
     name: str
@@ -47,7 +47,7 @@ def _facts(name: str, scene: str) -> RobotFacts:
     spec = robot_models.load(name, scene)
     return RobotFacts(name=spec.name, keyframes=tuple(spec.keyframes), default_scene=entry_of(name).default_scene,
                       objects=tuple(spec.objects), arms=tuple(spec.end_effector_sites), walks=bool(spec.feet_sites),
-                      grips=spec.grasp is not None)
+                      grips=spec.grasp is not None or (bool(spec.palms) and spec.walking is not None))
 
 
 def scene_problem(robot: str, scene: str) -> str | None:
