@@ -35,6 +35,7 @@ from sim_bridge.fetch.align import StanceAligner
 from sim_bridge.fetch.bimanual import Palm, grip_forces, palms_of, set_palm_hand_pose, tilt_of, tool_target, yaw_matrix, yaw_of
 from sim_bridge.fetch.goal import FetchGoal, FetchPlan, plan_fetch
 from sim_bridge.fetch.grip import GripConfig
+from sim_bridge.fetch.outcome import Lasting, dropped, placement, walk_failure
 from sim_bridge.fetch.stance import Stance, StanceConfig, wrap
 from sim_bridge.locomotion import WalkingController
 from sim_bridge.navigation import OccupancyGrid
@@ -43,7 +44,7 @@ from sim_bridge.skills.locomotion import LEGS, NavigateGoal, NavigateSkill, Walk
 from sim_bridge.state import Pose
 
 Stage = PickPlaceStage
-PASSED_ON = ("FELL", "TIMEOUT", "BATTERY_LOW")  # a walk's failures the fetch ends with as they are
+STANDING_PHASES = ("idle", "balance")  # gait phases of a biped standing on both feet (GaitPhase.kind)
 
 
 class FetchSkill:
@@ -85,11 +86,12 @@ class FetchSkill:
         self._gripping = False
         self._squeezing = False
         self._aligner = StanceAligner(self.walker, self.config)
-        self._good_since: float | None = None
-        self._lost_since: float | None = None
-        self._refused_since: float | None = None
+        self._gripped = Lasting(self.config.grasp_settle_s)  # the squeeze force reached, long enough to lift
+        self._lost = Lasting(self.config.drop_after_s)  # no palm holds what it carries: dropped
+        self._refused = Lasting(self.config.unreachable_s)  # an arm's controller gave up on its target
         self._forces = (0.0, 0.0)
         self._offset = np.zeros(3)
+        self._turn_spot: Stance | None = None  # where the robot turns to the stance heading before raising its hands
         self._base_qpos = 0
         self.placement_error = math.nan
         self.events: list[str] = []
@@ -104,6 +106,9 @@ class FetchSkill:
         self._base_qpos = int(model.jnt_qposadr[model.body_jntadr[model.body(self.robot.base_body).id]])
         self._t0 = self._now = float(data.time)
         set_palm_hand_pose(self.robot, model, data)  # the hands take their palm pose on the way
+        # Standing at the tables the legs keep balancing actively: the arms' reaches and the box's weight would
+        # rock a robot standing on its leg servos, and its hands with it.
+        self.walker.hold_balance(True)
         self._enter("navigate_pick", Stage.APPROACH)
         pick = self.plan.pick
         self._start_walk(NavigateSkill(self.walker, self.robot.base_body, self.grid,
@@ -117,6 +122,7 @@ class FetchSkill:
         if self._walk is not None:
             self._walk.stop_now(model, data)
         self._hold_arms()
+        self.walker.hold_balance(False)
 
     def update_settings(self, settings: Mapping[str, float]) -> None:
         """Nothing of a running fetch changes with the server's parameters."""
@@ -134,6 +140,12 @@ class FetchSkill:
         return replace(inner, target_xyz=target)
 
     def update(self, model: mujoco.MjModel, data: mujoco.MjData, control_dt: float) -> SkillOutcome | None:
+        outcome = self._update(model, data, control_dt)
+        if outcome is not None:
+            self.walker.hold_balance(False)  # standing still afterwards, the legs go back to their servos
+        return outcome
+
+    def _update(self, model: mujoco.MjModel, data: mujoco.MjData, control_dt: float) -> SkillOutcome | None:
         self._now = float(data.time)
         plan = self.plan
         assert plan is not None  # set by start
@@ -168,11 +180,9 @@ class FetchSkill:
             self._walk = None
             if outcome.code != "SUCCESS":
                 self._hold_arms()
-                # A walk that finds no way (no path, its goal inside an obstacle) leaves the object unreachable.
-                code = outcome.code if outcome.code in PASSED_ON else "UNREACHABLE"
-                return SkillOutcome.aborted(code, f"{self._phase}: {outcome.message}")
+                return walk_failure(outcome, self._phase)
         self._regulate(model, data)
-        if self._phase in ("reach", "squeeze", "lift", "over_place", "lower", "release", "raise"):
+        if self._phase in ("reach", "squeeze", "lift", "over_place", "lower", "release"):
             unreachable = self._unreachable()
             if unreachable is not None:
                 return unreachable
@@ -213,6 +223,15 @@ class FetchSkill:
         config, phase, elapsed = self.config, self._phase, self._now - self._phase_t0
         box = data.xpos[plan.body]
         if phase == "navigate_pick":
+            # Face the stance's heading where the navigation ended, hands still low: walking on with the hands
+            # raised and the heading off would sweep them across the table into the object.
+            x, y, _ = self._feet(data)
+            self._turn_spot = replace(plan.pick, x=x, y=y)
+            self._enter("turn_pick", Stage.APPROACH)
+        elif phase == "turn_pick":
+            assert self._turn_spot is not None
+            if not self._align(self._turn_spot, data, elapsed):
+                return None
             self._enter("ready_pick", Stage.APPROACH)
             self._ready_pose(data, plan.pick_top_z)
         elif phase == "ready_pick":
@@ -246,13 +265,9 @@ class FetchSkill:
         elif phase == "squeeze":
             target = config.grasp_fraction * self.goal.grip_force_n
             self.stage_progress = min(1.0, min(self._forces) / target)
-            if min(self._forces) >= target:
-                self._good_since = self._now if self._good_since is None else self._good_since
-                if self._now - self._good_since >= config.grasp_settle_s:
-                    self._enter("lift", Stage.LIFT)
-                    self._center_goal = self._center + np.array([0.0, 0.0, self.goal.lift_height_m])
-            else:
-                self._good_since = None
+            if self._gripped.update(self._now, min(self._forces) >= target):
+                self._enter("lift", Stage.LIFT)
+                self._center_goal = self._center + np.array([0.0, 0.0, self.goal.lift_height_m])
             if self._phase == "squeeze" and elapsed > config.grasp_timeout_s:
                 return self._fail("GRASP_FAILED", f"the palms closed {self._depth[0] * 1e3:.0f} / {self._depth[1] * 1e3:.0f} "
                                   f"mm past the sides measuring {self._forces[0]:.1f} / {self._forces[1]:.1f} N")
@@ -303,7 +318,10 @@ class FetchSkill:
                 self._depth = [-config.ready_clearance_m] * 2  # wide of the box, above its top
                 self._set_grip(data, config.retreat_speed_mps)
         elif phase == "raise":
-            if self._arms_arrived(config.ready_tolerance_m) or elapsed > config.move_timeout_s:
+            # The box is down and let go: a hand that cannot rise all the way (a turned grip near the edge of
+            # its reach) only ends the rise early.
+            given_up = any(self.arms.status(p.arm).unreachable for p in self.palms)
+            if self._arms_arrived(config.ready_tolerance_m) or given_up or elapsed > config.move_timeout_s:
                 self._hold_arms()
                 self._enter("step_back", Stage.RETREAT)
                 self._walk_by(-self.stance_config.approach_back_m, model, data)
@@ -318,12 +336,8 @@ class FetchSkill:
         workspace by a millimetre once and reach it the next time: only a lasting refusal fails."""
         refused = [(palm.arm, self.arms.status(palm.arm)) for palm in self.palms]
         refused = [(arm, status) for arm, status in refused if status.unreachable]
-        if not refused:
-            self._refused_since = None
-            return None
-        self._refused_since = self._now if self._refused_since is None else self._refused_since
-        if self._now - self._refused_since < self.config.unreachable_s:
-            if not self._gripping:  # nothing re-targets the arms: try the same targets again
+        if not self._refused.update(self._now, bool(refused)):
+            if refused and not self._gripping:  # nothing re-targets the arms: try the same targets again
                 self._set_grip_speed(self.config.reach_speed_mps)
             return None
         return self._fail("UNREACHABLE", "; ".join(f"{arm}: {status.reason}" for arm, status in refused))
@@ -334,7 +348,7 @@ class FetchSkill:
         if stage != self.stage:
             self.stage_progress = 0.0
         self.stage = stage
-        self._good_since = None
+        self._gripped.clear()
         self.events.append(f"{self._now:.2f} {stage.name} {phase}")
 
     def _fail(self, code: str, message: str) -> SkillOutcome:
@@ -379,8 +393,8 @@ class FetchSkill:
         return self._aligner.step(stance, self._feet(data), elapsed, self._standing())
 
     def _standing(self) -> bool:
-        """Standing on the servos again: the walker has handed the legs back (it runs no more)."""
-        return not self.walker.active
+        """Standing again: the walker balances on both feet (it holds the balance: no hand-over to the servos)."""
+        return self.walker.gait_phase().kind in STANDING_PHASES
 
     def _grip_yaw(self, box_yaw: float, data: mujoco.MjData) -> float:
         heading = self._base(data)[2]
@@ -470,15 +484,9 @@ class FetchSkill:
         plan = self.plan
         assert plan is not None
         carrying = self.stage in (Stage.LIFT, Stage.TRANSPORT, Stage.PLACE)
-        if not carrying or self._held():
-            self._lost_since = None
+        if not self._lost.update(self._now, carrying and not self._held()):
             return None
-        self._lost_since = self._now if self._lost_since is None else self._lost_since
-        if self._now - self._lost_since < self.config.drop_after_s:
-            return None
-        x, y, z = (float(v) for v in data.xpos[plan.body])
-        return SkillOutcome.aborted("OBJECT_DROPPED", f"{self.goal.object_name!r} slipped out of the palms in stage "
-                                    f"{self.stage.name}; it lies at ({x:.2f}, {y:.2f}, {z:.2f}) m")
+        return dropped(self.goal.object_name, self.stage.name, data.xpos[plan.body])
 
     def _finish(self, data: mujoco.MjData) -> SkillOutcome:
         plan = self.plan
@@ -487,9 +495,4 @@ class FetchSkill:
         self.placement_error = float(np.linalg.norm(position - plan.place_center))
         tilt = tilt_of(quat)
         self.stage_progress = 1.0
-        if self.placement_error <= self.goal.placement_tolerance_m and tilt <= self.config.max_place_tilt_rad:
-            return SkillOutcome.succeeded(f"placed {self.placement_error * 1e3:.1f} mm from the place, "
-                                          f"tilted {math.degrees(tilt):.1f} deg")
-        return SkillOutcome.aborted("PLACEMENT_FAILED", f"placed {self.placement_error * 1e3:.1f} mm from the place "
-                                    f"(tolerance {self.goal.placement_tolerance_m * 1e3:.0f} mm), tilted "
-                                    f"{math.degrees(tilt):.1f} deg")
+        return placement(self.placement_error, tilt, self.goal.placement_tolerance_m, self.config.max_place_tilt_rad)

@@ -120,6 +120,6 @@ def plan_stance(table: Obstacle, x: float, y: float, grip_yaw: float | None, con
             continue
         c, s = math.cos(heading), math.sin(heading)
         stance_x, stance_y = x - reach * c, y - reach * s
-        back = depth + config.approach_edge_m
+        back = (depth + config.approach_edge_m) / math.cos(offset)  # approach_edge_m from the edge, turned or not
         return Stance(stance_x, stance_y, wrap(heading), x - back * c, y - back * s, table.name)
     raise InvalidGoalError(f"no stance at {table.name} reaches ({x:.2f}, {y:.2f}): " + "; ".join(problems))

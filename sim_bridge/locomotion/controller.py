@@ -78,9 +78,20 @@ class WalkingController:
         self._command = CommandFilter(biped.steps, self._params)
         self._stop = StopLimits()
         self._data: mujoco.MjData | None = None
+        self._holding_balance = False
         self._init_state()
 
     # ----- public API -------------------------------------------------------------------
+    def hold_balance(self, on: bool) -> None:
+        """While on, a standing robot keeps balancing on both feet with the torque QP instead of handing its
+        legs back to the position servos: for work with the arms, whose swings would rock a robot standing on
+        stiff servos. Off: the usual hand-over once the CoM is still. A reset turns it off."""
+        self._holding_balance = on
+
+    @property
+    def holding_balance(self) -> bool:
+        return self._holding_balance
+
     @property
     def params(self) -> GaitParameters:
         return self._params
@@ -95,7 +106,7 @@ class WalkingController:
         # Called every control step by the simulation: plain comparisons only.
         phase = self._gait.phase
         if phase is Phase.IDLE:
-            return self._command.target != ZERO
+            return self._holding_balance or self._command.target != ZERO
         return phase is not Phase.FALLEN
 
     @property
@@ -217,6 +228,7 @@ class WalkingController:
         self._command.target = ZERO
         self._stop.clear()
         self._wbc.reset()
+        self._holding_balance = False
         self._init_state()
 
     def release(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
@@ -250,7 +262,7 @@ class WalkingController:
         if gait.phase is Phase.IDLE:
             return
         self._actuation.write_torque(data, self._wbc.solve(model, data, self._targets(model, data, feet, control_dt)))
-        if gait.phase is Phase.BALANCE and self._command.target == ZERO and self._hand_over.due:
+        if gait.phase is Phase.BALANCE and self._command.target == ZERO and self._hand_over.due and not self._holding_balance:
             self._actuation.hand_over(model, data)
             gait.phase = Phase.IDLE
 

@@ -1,32 +1,84 @@
 """PickPlace on the G1 through ROS (issue 21), from a plain rclpy client in another process: one goal walks the
-robot to the box, squeezes it between both palms, lifts it and carries it toward the second table, with
-feedback at every stage; a cancel while it carries stops the robot, which stands holding the box.
-
-Placing it within 2 cm is not asserted here: through ROS (goals start at a wall-clock-dependent sim time)
-it lands within 2 cm in only some runs; the placement is judged in the core (tests/core/test_fetch.py).
+robot to the box, squeezes it between both palms, lifts it, carries it to the second table and puts it down
+within 2 cm of the place, with feedback at every stage, after the box was moved on the first table through
+/sim/set_entity_state; a cancel while it carries stops the robot, which stands holding the box.
 """
 
 from __future__ import annotations
 
+import math
+
+import numpy as np
 import pytest
 from action_msgs.msg import GoalStatus
 
 from robot_models import g1_tables
 from sim_interfaces.action import PickPlace
-from simulation_interfaces.srv import GetEntityState
+from simulation_interfaces.msg import Result
+from simulation_interfaces.srv import GetEntityState, SetEntityState
 from tests.ros.actions import ready_client, result, send, wait_feedback
 from tests.ros.processes import running
 
 pytestmark = pytest.mark.slow
 
 PLACE = (1.02, -2.75)  # on the second table, 12 cm inside its edge toward the robot's side [m]
+MOVED_TO = (1.06, 0.03, -0.20)  # the box, moved (4 cm deeper, turned 11 deg) on the first table: x, y [m], yaw [rad]
+PLACEMENT_TOLERANCE_M = 0.02
+FETCH_WAIT_S = 900.0  # wall seconds for the whole task (about 60 s of sim time)
 CARRY_WAIT_S = 600.0  # wall seconds until it carries the box (about 25 s of sim time)
 MIN_GRIP_N = 5.0
 
 
-def _box_z(client) -> float:
+def _box(client):
     request = GetEntityState.Request(entity=g1_tables.BOX.name)
-    return client.call(GetEntityState, "/sim/get_entity_state", request, timeout=30.0).state.pose.position.z
+    return client.call(GetEntityState, "/sim/get_entity_state", request, timeout=30.0).state
+
+
+def _box_z(client) -> float:
+    return _box(client).pose.position.z
+
+
+def _tilt(q) -> float:
+    """Angle between the body's z axis and the world's [rad]."""
+    return math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (q.x * q.x + q.y * q.y))))
+
+
+def _place_goal() -> PickPlace.Goal:
+    goal = PickPlace.Goal(object_id=g1_tables.BOX.name)
+    goal.place_pose.header.frame_id = "world"
+    goal.place_pose.pose.position.x, goal.place_pose.pose.position.y = PLACE
+    goal.place_pose.pose.position.z = g1_tables.TABLE_TOP_Z_M
+    return goal
+
+
+def test_one_pick_place_goal_fetches_the_moved_box_to_the_second_table(client):
+    rest_z = g1_tables.TABLE_TOP_Z_M + g1_tables.BOX.half_size[2]
+    with running(["bringup", "--robot", "g1", "--scene", "tables", "--rtf", "0"]) as process:
+        pick_place = ready_client(client, PickPlace, "/pick_place", timeout=90.0)
+        state = _box(client)
+        x, y, yaw = MOVED_TO
+        state.pose.position.x, state.pose.position.y, state.pose.position.z = x, y, rest_z + 0.002
+        o = state.pose.orientation
+        o.w, o.x, o.y, o.z = math.cos(yaw / 2.0), 0.0, 0.0, math.sin(yaw / 2.0)
+        request = SetEntityState.Request(entity=g1_tables.BOX.name, state=state, set_pose=True)
+        moved = client.call(SetEntityState, "/sim/set_entity_state", request, timeout=30.0).result
+        assert moved.result == Result.RESULT_OK, moved.error_message
+
+        sent = send(client, pick_place, _place_goal())
+        assert sent.handle.accepted
+        outcome = result(client, sent, timeout=FETCH_WAIT_S)
+        assert outcome.status == GoalStatus.STATUS_SUCCEEDED, (outcome.result.error_code, outcome.result.error_msg)
+        assert outcome.result.placement_error <= PLACEMENT_TOLERANCE_M
+        stages = [f.stage for f in sent.feedback]
+        assert stages == sorted(stages) and set(stages) == set(range(8)), f"every stage, in order: {sorted(set(stages))}"
+
+        final = _box(client)
+        p = final.pose.position
+        assert math.dist((p.x, p.y), PLACE) <= PLACEMENT_TOLERANCE_M, (p.x, p.y)
+        assert abs(p.z - rest_z) < 0.01 and _tilt(final.pose.orientation) < math.radians(5.0), "resting level on the table"
+        v = final.twist.linear
+        assert np.linalg.norm([v.x, v.y, v.z]) < 0.02, "let go of, at rest"
+        assert process.alive(), process.output()
 
 
 def test_a_pick_place_goal_walks_grasps_lifts_and_carries_the_box_and_a_cancel_keeps_it_held(client):
@@ -37,11 +89,7 @@ def test_a_pick_place_goal_walks_grasps_lifts_and_carries_the_box_and_a_cancel_k
         refused.place_pose.pose.position.x, refused.place_pose.pose.position.y = PLACE
         assert not send(client, pick_place, refused).handle.accepted, "both palms: end_effector must be empty"
 
-        goal = PickPlace.Goal(object_id="box")
-        goal.place_pose.header.frame_id = "world"
-        goal.place_pose.pose.position.x, goal.place_pose.pose.position.y = PLACE
-        goal.place_pose.pose.position.z = g1_tables.TABLE_TOP_Z_M
-        sent = send(client, pick_place, goal)
+        sent = send(client, pick_place, _place_goal())
         assert sent.handle.accepted
         wait_feedback(client, sent, lambda f: f.phase == "navigate_place" and f.distance_remaining > 1.0,
                       CARRY_WAIT_S, "the robot carrying the box toward the second table")
