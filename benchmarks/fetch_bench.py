@@ -70,26 +70,19 @@ def _put(robot: Any, data: mujoco.MjData, name: str, x: float, y: float, z: floa
 def fetch(layout: Layout) -> Outcome:
     import robot_models
     from robot_models import g1_tables
-    from sim_bridge import Simulation, Slot
-    from sim_bridge.arm import ArmController
-    from sim_bridge.fetch import FetchGoal, FetchSkill
-    from sim_bridge.locomotion import WalkingController
-    from sim_bridge.navigation import grid_from_obstacles
-    from sim_bridge.skills import SkillHost, SkillStatus
+    from sim_bridge.fetch import FetchGoal
+    from sim_bridge.fetch.rig import FetchRig
+    from sim_bridge.skills import SkillStatus
 
     robot = robot_models.load(robot_models.G1, "tables")
-    sim = Simulation(robot)
-    walker = WalkingController(sim.model, robot.biped)
-    legs = SkillHost(walker)
-    sim.set_controller(Slot.LOCOMOTION, legs)
-    arms = ArmController(robot)
-    sim.set_controller(Slot.ARM, arms)
+    rig = FetchRig.of(robot)
+    sim, walker, legs = rig.sim, rig.walker, rig.legs
     top = g1_tables.TABLE_TOP_Z_M
     for item in (g1_tables.CUBE, g1_tables.CAN):
         _put(robot, sim.data, item.name, *OUT_OF_THE_WAY[item.name], top + item.half_size[2] + 0.001)
     _put(robot, sim.data, "box", *layout.box_xy, top + g1_tables.BOX.half_size[2] + 0.001, layout.box_yaw)
     mujoco.mj_forward(sim.model, sim.data)
-    skill = FetchSkill(robot, walker, arms, grid_from_obstacles(robot.obstacles), FetchGoal("box", *layout.place_xy))
+    skill = rig.skill(FetchGoal("box", *layout.place_xy))
     wall0, sim0 = time.perf_counter(), sim.time
     run = legs.start(1, skill, sim.model, sim.data)
     fell = False

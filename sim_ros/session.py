@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import faulthandler
+import sys
 import threading
 import time
+import traceback
 from collections.abc import Callable
 from typing import Any, Generic, TypeVar
 
@@ -11,7 +14,7 @@ import rclpy
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rclpy.context import Context
 from rclpy.event_handler import SubscriptionEventCallbacks
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
@@ -25,6 +28,7 @@ MsgT = TypeVar("MsgT")
 # clients answered while this one was busy, a queue of 10 lost its own response (the soak benchmark).
 RESPONSE_QOS = QoSProfile(depth=1000)
 CLOSE_WAIT_S = 10.0  # [s of wall time] close() waits this long for the executor's callbacks and thread to end
+SPIN_WAKE_S = 0.5  # [s of wall time] the spin thread looks at least this often whether the session is closing
 
 T = TypeVar("T")
 
@@ -99,6 +103,7 @@ class RosSession:
             parameter_overrides=[Parameter("use_sim_time", value=use_sim_time)],
         )
         self._closing = False
+        self.callback_faults = 0  # exceptions raised by callbacks on the spin thread (printed, then spun past)
         self._executor = SingleThreadedExecutor(context=self.context)
         self._executor.add_node(self.node)
         self._thread = threading.Thread(target=self._spin, name=f"{name}-executor", daemon=True)
@@ -108,13 +113,27 @@ class RosSession:
         self._service_clients: dict[tuple[Any, str], Any] = {}
 
     def _spin(self) -> None:
-        try:
-            self._executor.spin()
-        except Exception:
-            # A close whose executor shutdown outlived its timeout (a loaded machine) destroys the node
-            # under a spin still running: the handles it then meets are gone, which is no error.
-            if self.context.ok() and not self._closing:
-                raise
+        """Run callbacks until the session closes; a callback that raises is reported and the spin goes on.
+
+        ``executor.spin()`` ends at the first exception a callback raises, and every later request of
+        the session then waits for a thread that is gone (a test module's later tests all timed out
+        that way). rclpy also raises ``InvalidHandle`` on the spin thread when another thread destroys
+        an entity the wait set holds. The exception is printed with its stack and counted in
+        :attr:`callback_faults`.
+        """
+        while self.context.ok() and not self._closing:
+            try:
+                self._executor.spin_once(timeout_sec=SPIN_WAKE_S)
+            except ExternalShutdownException:
+                return
+            except Exception:  # noqa: BLE001 - any callback's exception: reported, and the spin goes on
+                # A close whose executor shutdown outlived its timeout (a loaded machine) destroys the node
+                # under a spin still running: the handles it then meets are gone, which is no error.
+                if not self.context.ok() or self._closing:
+                    return
+                self.callback_faults += 1
+                print(f"{self.node.get_name()}: a callback raised; the executor goes on:", file=sys.stderr)
+                traceback.print_exc()
 
     def __enter__(self) -> RosSession:
         return self
@@ -179,16 +198,31 @@ class RosSession:
         inside an executor callback.
         """
         task = self._executor.create_task(function)
-        return self.wait_future(task, timeout, f"{what} to run the request")
+        try:
+            return self.wait_future(task, timeout, f"{what} to run the request")
+        except WaitTimeout:
+            # the spin thread is stuck somewhere: say where (pytest shows stderr with the failure)
+            print(f"{self.node.get_name()}: the executor did not run a request in {timeout:.1f} s; every thread:",
+                  file=sys.stderr, flush=True)
+            faulthandler.dump_traceback(file=sys.stderr, all_threads=True)
+            raise
 
     # ----- topics and services -----------------------------------------------------------
     def record(self, msg_type: type[MsgT], topic: str, qos: QoSProfile | int = 10, keep: int = 100_000) -> TopicRecorder[MsgT]:
         recorder: TopicRecorder[MsgT] = TopicRecorder(keep)
         subscription = self.node.create_subscription(msg_type, topic, recorder._on_message, qos,
                                                      event_callbacks=quiet_events())
-        recorder._unsubscribe = lambda: self.node.destroy_subscription(subscription)
+        recorder._unsubscribe = lambda: self.destroy_subscription(subscription)
         self.recorders.append(recorder)
         return recorder
+
+    def destroy_subscription(self, subscription: Any) -> None:
+        """Destroy a subscription on the spin thread (destroyed from another thread while the executor
+        waits on it, rclpy raises ``InvalidHandle`` there); directly once the spin has ended."""
+        if self._thread.is_alive() and threading.current_thread() is not self._thread:
+            self.in_executor(lambda: self.node.destroy_subscription(subscription), what="unsubscribing")
+        else:
+            self.node.destroy_subscription(subscription)
 
     def call(self, srv_type: Any, name: str, request: Any, timeout: float = 10.0,
              resend_every_s: float | None = None) -> Any:

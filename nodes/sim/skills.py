@@ -90,6 +90,9 @@ class SkillBridge:
         elif host is None:
             reason = (f"unknown resource {msg.resource!r} on robot {self._sim.robot.name!r}; "
                       f"resources: {', '.join(self._hosts) or 'none'}")
+        elif (holder := self._holder_of(msg.resource)) is not None:
+            reason = (f"{msg.resource!r} is moved by the running {holder.skill_name} goal {holder.seq} (on "
+                      f"{holder.resource!r}); cancel it, or send this goal once it has ended")
         else:
             try:
                 goal = deserialize_message(bytes(msg.goal), binding.action_type.Goal)
@@ -99,10 +102,23 @@ class SkillBridge:
             except Exception as error:  # noqa: BLE001 - a malformed goal is refused with its reason, never kills /sim
                 reason = f"malformed {msg.skill} goal: {type(error).__name__}: {error}"
             else:
+                for resource in getattr(skill, "also_holds", ()):  # the goals on what it will move end first
+                    held = self._hosts.get(resource)
+                    if held is not None:
+                        held.preempt(resource, self._sim.model, self._sim.data,
+                                     f"preempted by {msg.skill} goal {msg.goal_seq}, which moves {resource!r}")
                 host.start(msg.goal_seq, skill, self._sim.model, self._sim.data)
                 return
         self._node.get_logger().warning(f"{msg.skill} goal {msg.goal_seq} on {msg.resource!r} refused: {reason}")
         self._refused.append(refused_run(msg.goal_seq, msg.skill, msg.resource, self.epoch, reason, now))
+
+    def _holder_of(self, resource: str) -> SkillRun | None:
+        """The running goal (of another resource) that also moves ``resource``, if any."""
+        for own, host in self._hosts.items():
+            run = host.running(own)
+            if own != resource and run is not None and resource in getattr(run.skill, "also_holds", ()):
+                return run
+        return None
 
     @property
     def epoch(self) -> int:

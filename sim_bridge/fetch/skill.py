@@ -66,6 +66,7 @@ class FetchSkill:
     def __init__(self, robot: RobotSpec, walker: WalkingController, arms: ArmController, grid: OccupancyGrid,
                  goal: FetchGoal, stance: StanceConfig | None = None, grip: GripConfig | None = None) -> None:
         self.robot, self.walker, self.arms, self.grid, self.goal = robot, walker, arms, grid, goal
+        self.also_holds: tuple[str, ...] = tuple(arms.arms)  # it moves both arms: their goals wait for it
         self.stance_config = stance or StanceConfig()
         self.config = grip or GripConfig()
         self.palms: tuple[Palm, Palm] = palms_of(robot)

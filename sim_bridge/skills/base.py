@@ -111,7 +111,9 @@ class Skill(Protocol):
         pose_frame: the frame of the poses in its progress and result values.
 
     A skill may also have an integer ``milestone`` (PickPlace: its stage): each change of it is
-    reported as feedback whatever the feedback rate.
+    reported as feedback whatever the feedback rate, and a tuple ``also_holds`` of the resources it
+    moves besides its own (the G1's fetch: both arms): while it runs, goals on those are refused, and
+    its start preempts theirs.
     """
 
     name: str

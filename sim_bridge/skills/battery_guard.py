@@ -30,6 +30,7 @@ class BatteryGuard:
         self.inner = inner
         self.name = inner.name
         self.resource = inner.resource
+        self.also_holds: tuple[str, ...] = getattr(inner, "also_holds", ())
         self.pose_frame = inner.pose_frame
         self._battery = battery
         self._refused: SkillOutcome | None = None

@@ -109,11 +109,7 @@ class SkillHost:
         ends at once, ABORTED ``INVALID_GOAL`` with the reason; a goal it preempted has ended too.
         """
         now = float(data.time)
-        previous = self.running(skill.resource)
-        if previous is not None:
-            assert previous.skill is not None
-            previous.skill.stop_now(model, data)
-            self._end(previous, SkillOutcome.aborted(PREEMPTED, "preempted by a newer goal"), data)
+        self.preempt(skill.resource, model, data)
         try:
             skill.start(model, data)
         except (InvalidGoalError, UnknownNameError) as error:
@@ -123,6 +119,15 @@ class SkillHost:
         self._running.append(run)
         self._changed.append(run)
         return run
+
+    def preempt(self, resource: str, model: mujoco.MjModel, data: mujoco.MjData,
+                reason: str = "preempted by a newer goal") -> None:
+        """End the goal running on ``resource`` at once (ABORTED ``PREEMPTED``), if there is one."""
+        previous = self.running(resource)
+        if previous is not None:
+            assert previous.skill is not None
+            previous.skill.stop_now(model, data)
+            self._end(previous, SkillOutcome.aborted(PREEMPTED, reason), data)
 
     def refuse(self, seq: int, skill_name: str, resource: str, reason: str, now: float) -> SkillRun:
         """Record a goal that could not start (ABORTED ``INVALID_GOAL``); the resource's running goal is untouched."""

@@ -11,27 +11,17 @@ import pytest
 
 import robot_models
 from robot_models import g1_tables
-from sim_bridge import Simulation
-from sim_bridge.arm import ArmController, PickPlaceStage
+from sim_bridge.arm import PickPlaceStage
 from sim_bridge.controller import Slot
 from sim_bridge.errors import InvalidGoalError, UnknownNameError
 from sim_bridge.fetch import FetchGoal, FetchSkill, StanceConfig, plan_stance
 from sim_bridge.fetch.bimanual import grip_forces, palms_of, tilt_of
-from sim_bridge.locomotion import LocomotionMode, WalkingController
-from sim_bridge.navigation import grid_from_obstacles
-from sim_bridge.skills import SkillHost, SkillRun, SkillStatus
+from sim_bridge.fetch.rig import FetchRig
+from sim_bridge.locomotion import LocomotionMode
+from sim_bridge.skills import SkillRun, SkillStatus
 
 PLACE = (1.02, -2.8)  # on the second table, 12 cm inside its edge facing the robot's side
 MAX_SIM_S = 150.0
-
-
-@dataclass
-class Rig:
-    robot: robot_models.RobotSpec
-    sim: Simulation
-    walker: WalkingController
-    legs: SkillHost
-    arms: ArmController
 
 
 @dataclass
@@ -47,21 +37,7 @@ def robot() -> robot_models.RobotSpec:
     return robot_models.load(robot_models.G1, "tables")
 
 
-def _rig(robot: robot_models.RobotSpec) -> Rig:
-    sim = Simulation(robot)
-    walker = WalkingController(sim.model, robot.biped)
-    legs = SkillHost(walker)
-    sim.set_controller(Slot.LOCOMOTION, legs)
-    arms = ArmController(robot)
-    sim.set_controller(Slot.ARM, arms)
-    return Rig(robot, sim, walker, legs, arms)
-
-
-def _skill(rig: Rig, goal: FetchGoal) -> FetchSkill:
-    return FetchSkill(rig.robot, rig.walker, rig.arms, grid_from_obstacles(rig.robot.obstacles), goal)
-
-
-def _run(rig: Rig, skill: FetchSkill, run: SkillRun, trace: Trace, until: float = MAX_SIM_S) -> None:
+def _run(rig: FetchRig, skill: FetchSkill, run: SkillRun, trace: Trace, until: float = MAX_SIM_S) -> None:
     sim = rig.sim
     while run.status is SkillStatus.RUNNING and sim.time < until:
         sim.step(1)
@@ -74,15 +50,15 @@ def _run(rig: Rig, skill: FetchSkill, run: SkillRun, trace: Trace, until: float 
 
 
 @pytest.fixture(scope="module")
-def idle_rig(robot) -> Rig:
+def idle_rig(robot) -> FetchRig:
     """A rig at its keyframe, for goals refused before anything moves."""
-    return _rig(robot)
+    return FetchRig.of(robot)
 
 
 @pytest.fixture(scope="module")
 def fetched(robot):
-    rig = _rig(robot)
-    skill = _skill(rig, FetchGoal("box", *PLACE))
+    rig = FetchRig.of(robot)
+    skill = rig.skill(FetchGoal("box", *PLACE))
     run = rig.legs.start(1, skill, rig.sim.model, rig.sim.data)
     trace = Trace()
     _run(rig, skill, run, trace)
@@ -91,7 +67,7 @@ def fetched(robot):
     return rig, skill, run, trace
 
 
-def _release(rig: Rig) -> None:
+def _release(rig: FetchRig) -> None:
     """Hand the legs back to their servos: the robot's model is shared by the module's simulations."""
     rig.sim.set_controller(Slot.LOCOMOTION, None)
 
@@ -133,20 +109,20 @@ def test_the_fetch_reports_every_stage_in_order(fetched):
 def test_bad_goals_are_refused_with_the_reason(idle_rig, goal, error, match):
     rig = idle_rig
     with pytest.raises(error, match=match):
-        _skill(rig, goal).start(rig.sim.model, rig.sim.data)
-    run = rig.legs.start(7, _skill(rig, goal), rig.sim.model, rig.sim.data)
+        rig.skill(goal).start(rig.sim.model, rig.sim.data)
+    run = rig.legs.start(7, rig.skill(goal), rig.sim.model, rig.sim.data)
     assert run.status is SkillStatus.ABORTED and run.outcome is not None and run.outcome.code == "INVALID_GOAL"
 
 
 def test_an_object_off_the_tables_or_a_bad_value_is_refused(robot):
-    rig = _rig(robot)
+    rig = FetchRig.of(robot)
     with pytest.raises(InvalidGoalError, match="finite"):
         FetchGoal("box", math.nan, -2.8)
     adr = int(robot.model.joint("box").qposadr[0])
     rig.sim.data.qpos[adr:adr + 3] = [0.5, 1.5, 0.075]  # on the floor
     mujoco.mj_forward(rig.sim.model, rig.sim.data)
     with pytest.raises(InvalidGoalError, match="does not rest upright on a table top"):
-        _skill(rig, FetchGoal("box", *PLACE)).start(rig.sim.model, rig.sim.data)
+        rig.skill(FetchGoal("box", *PLACE)).start(rig.sim.model, rig.sim.data)
 
 
 def test_a_stance_faces_the_nearest_edge_and_a_deep_point_has_none(robot):
@@ -162,8 +138,8 @@ def test_a_stance_faces_the_nearest_edge_and_a_deep_point_has_none(robot):
 
 
 def test_cancel_while_carrying_stops_and_stands_holding_the_box(robot):
-    rig = _rig(robot)
-    skill = _skill(rig, FetchGoal("box", *PLACE))
+    rig = FetchRig.of(robot)
+    skill = rig.skill(FetchGoal("box", *PLACE))
     run = rig.legs.start(3, skill, rig.sim.model, rig.sim.data)
     trace = Trace()
     sim = rig.sim
@@ -186,8 +162,8 @@ def test_cancel_while_carrying_stops_and_stands_holding_the_box(robot):
 
 
 def test_an_object_that_leaves_the_palms_while_carried_ends_the_fetch_as_dropped(robot):
-    rig = _rig(robot)
-    skill = _skill(rig, FetchGoal("box", *PLACE))
+    rig = FetchRig.of(robot)
+    skill = rig.skill(FetchGoal("box", *PLACE))
     run = rig.legs.start(4, skill, rig.sim.model, rig.sim.data)
     sim = rig.sim
     while run.status is SkillStatus.RUNNING and skill.stage < PickPlaceStage.TRANSPORT:

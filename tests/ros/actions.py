@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -13,6 +14,7 @@ from rclpy.qos import QoSProfile
 from sim_client import RosSession
 from sim_client.actions import wait_until_answering
 from sim_interfaces.action import NavigateToPose
+from sim_ros.session import WaitTimeout
 
 
 @dataclass
@@ -76,9 +78,22 @@ def ready_client(session: RosSession, action_type: Any, name: str, timeout: floa
     """A plain rclpy ActionClient whose server has answered it (a cancel and a result request: both ways matched).
 
     It keeps 100 feedback messages, as the servers' writers do: an unpaced sim's feedback comes in bursts."""
-    client = ActionClient(session.node, action_type, name, feedback_sub_qos_profile=QoSProfile(depth=100))
-    wait_until_answering(session, client, timeout)
-    return client
+    deadline = time.monotonic() + timeout
+    while True:
+        client = ActionClient(session.node, action_type, name, feedback_sub_qos_profile=QoSProfile(depth=100))
+        remaining = deadline - time.monotonic()
+        try:
+            wait_until_answering(session, client, min(FRESH_CLIENT_S, remaining))
+            return client
+        except WaitTimeout:
+            session.in_executor(client.destroy, what="destroying an unanswered action client")
+            if time.monotonic() + 1.0 >= deadline:
+                raise
+            # A server that answers nothing for this long has not matched this client's endpoints (seen once
+            # for 90 s after a bring-up); a new client is discovered afresh. A stuck server fails below anyway.
+
+
+FRESH_CLIENT_S = 30.0  # [s of wall time] an action client whose probes are not answered this long is made anew
 
 
 def sim_now(client: RosSession, entity: str, sim: str = "/sim") -> float:

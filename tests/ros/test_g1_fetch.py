@@ -1,7 +1,8 @@
 """PickPlace on the G1 through ROS (issue 21), from a plain rclpy client in another process: one goal walks the
 robot to the box, squeezes it between both palms, lifts it, carries it to the second table and puts it down
 within 2 cm of the place, with feedback at every stage, after the box was moved on the first table through
-/sim/set_entity_state; a cancel while it carries stops the robot, which stands holding the box.
+/sim/set_entity_state; a MoveArm goal for an arm the fetch moves is refused with the reason; a cancel while
+it carries stops the robot, which stands holding the box.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import pytest
 from action_msgs.msg import GoalStatus
 
 from robot_models import g1_tables
-from sim_interfaces.action import PickPlace
+from sim_interfaces.action import MoveArm, PickPlace
 from simulation_interfaces.msg import Result
 from simulation_interfaces.srv import GetEntityState, SetEntityState
 from tests.ros.actions import ready_client, result, send, wait_feedback
@@ -85,6 +86,7 @@ def test_a_pick_place_goal_walks_grasps_lifts_and_carries_the_box_and_a_cancel_k
     rest_z = g1_tables.TABLE_TOP_Z_M + g1_tables.BOX.half_size[2]
     with running(["bringup", "--robot", "g1", "--scene", "tables", "--rtf", "0"]) as process:
         pick_place = ready_client(client, PickPlace, "/pick_place", timeout=90.0)
+        move_arm = ready_client(client, MoveArm, "/move_arm", timeout=90.0)
         refused = PickPlace.Goal(object_id="box", end_effector="left_arm")
         refused.place_pose.pose.position.x, refused.place_pose.pose.position.y = PLACE
         assert not send(client, pick_place, refused).handle.accepted, "both palms: end_effector must be empty"
@@ -107,6 +109,18 @@ def test_a_pick_place_goal_walks_grasps_lifts_and_carries_the_box_and_a_cancel_k
         assert max(f.distance_remaining for f in approach) > 0.3, "walked to the box"
         squeeze = [f for f in sent.feedback if f.stage == PickPlace.Feedback.GRASP]
         assert squeeze[-1].grip_force > MIN_GRIP_N, "squeezed to a measured force before lifting"
+
+        # An arm the fetch moves takes no other goal meanwhile: refused with the reason, the fetch untouched.
+        reach = MoveArm.Goal(end_effector="left_arm", position_tolerance=0.01, orientation_tolerance=0.1)
+        reach.target.header.frame_id = "pelvis"
+        reach.target.pose.position.x, reach.target.pose.position.y, reach.target.pose.position.z = 0.3, 0.25, 0.1
+        reach.target.pose.orientation.w = 1.0
+        refused_arm = send(client, move_arm, reach)
+        assert refused_arm.handle.accepted, "a valid goal: /sim is the one that knows the arm is taken"
+        arm_outcome = result(client, refused_arm, timeout=60.0)
+        assert arm_outcome.status == GoalStatus.STATUS_ABORTED, arm_outcome.result.error_msg
+        assert "moved by the running pick_place goal" in arm_outcome.result.error_msg, arm_outcome.result.error_msg
+        assert not sent.result_future().done(), "the fetch runs on"
 
         answer = sent.cancel()
         assert answer.return_code == 0, answer  # ERROR_NONE: the cancel is taken

@@ -34,6 +34,7 @@ from rcl_interfaces.srv import DescribeParameters, SetParameters
 from sim_client.scenario.model import schema
 from sim_client.scenario.running.sweep import parse_grid, points
 from sim_ros.processes import BIN, ChildProcess
+from sim_ros.session import WaitTimeout
 from tests.ros.actions import ready_client, result, send, wait_feedback
 
 pytestmark = pytest.mark.slow
@@ -220,7 +221,10 @@ class Shell:
         _, _, _, name, type_name, values = args
         action_type = load_type(type_name)
         goal = fill(action_type.Goal(), yaml.safe_load(values))
-        action = ready_client(self.client, action_type, name, timeout=READY_S)
+        try:
+            action = ready_client(self.client, action_type, name, timeout=READY_S)
+        except WaitTimeout as timeout:
+            raise AssertionError(f"{command}: {timeout}; the nodes' last output:\n{self.nodes.output()[-4000:]}") from timeout
         sent = send(self.client, action, goal)
         assert sent.handle.accepted, f"{command}: rejected"
         if following.startswith("ros2 param set"):  # "meanwhile": the next line acts on the running goal

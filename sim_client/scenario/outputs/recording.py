@@ -84,7 +84,7 @@ class McapRecorder:
 
     def close(self) -> None:
         for subscription in self._subscriptions:
-            self.session.node.destroy_subscription(subscription)
+            self.session.destroy_subscription(subscription)
         with self._lock:
             if self._closed:
                 return
