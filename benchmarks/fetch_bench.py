@@ -102,8 +102,11 @@ def main() -> None:
     parser.add_argument("--layouts", type=int, default=50)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--workers", type=int, default=2, help="processes (each layout is single-threaded)")
+    parser.add_argument("--only", default="", help="run only these layouts of the seeded set, e.g. 13,17")
     options = parser.parse_args()
     cases = layouts(options.layouts, options.seed)
+    if options.only:
+        cases = [cases[int(i)] for i in options.only.split(",")]
     print(f"fetch benchmark: {len(cases)} layouts, seed {options.seed}, {options.workers} workers", flush=True)
     wall0 = time.perf_counter()
     results: list[Outcome] = []

@@ -28,6 +28,7 @@ MsgT = TypeVar("MsgT")
 # clients answered while this one was busy, a queue of 10 lost its own response (the soak benchmark).
 RESPONSE_QOS = QoSProfile(depth=1000)
 CLOSE_WAIT_S = 10.0  # [s of wall time] close() waits this long for the executor's callbacks and thread to end
+RESEND_S = 5.0  # [s of wall time] a request that may be sent twice, unanswered this long, is sent again
 SPIN_WAKE_S = 0.5  # [s of wall time] the spin thread looks at least this often whether the session is closing
 
 T = TypeVar("T")
@@ -265,16 +266,33 @@ class RosSession:
         """Set one parameter through ``/<node>/set_parameters``. Returns (successful, reason)."""
         client = self.parameters(node_name)
         self.wait_for(lambda: client.services_are_ready(), timeout, f"parameter services of {node_name}")
-        response = self.wait_future(
-            client.set_parameters([Parameter(name, value=value)]), timeout, f"set {node_name} {name}"
-        )
+        response = self._until_answered(lambda: client.set_parameters([Parameter(name, value=value)]), timeout,
+                                        f"set {node_name} {name}")
         result = response.results[0]
         return bool(result.successful), str(result.reason)
 
     def get_parameter(self, node_name: str, name: str, timeout: float = 10.0) -> Any:
         client = self.parameters(node_name)
         self.wait_for(lambda: client.services_are_ready(), timeout, f"parameter services of {node_name}")
-        response = self.wait_future(client.get_parameters([name]), timeout, f"get {node_name} {name}")
+        response = self._until_answered(lambda: client.get_parameters([name]), timeout, f"get {node_name} {name}")
         if not response.values:
             raise KeyError(f"{node_name} has no parameter {name!r}")
         return Parameter.from_parameter_msg(ParameterMsg(name=name, value=response.values[0])).value
+
+    def _until_answered(self, send: Callable[[], Future], timeout: float, what: str) -> Any:
+        """Send a request that may be sent twice (a query, or setting a value) every :data:`RESEND_S` until
+        one is answered: a node that has just started can lose the response to a first request while its
+        side of discovery catches up (seen: 90 s without an answer).
+
+        Raises:
+            WaitTimeout: no answer within ``timeout`` wall seconds.
+        """
+        deadline = time.monotonic() + timeout
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0.0:
+                raise WaitTimeout(f"timed out after {timeout:.1f} s waiting for {what}")
+            try:
+                return self.wait_future(send(), min(RESEND_S, remaining), what)
+            except WaitTimeout:
+                continue

@@ -139,6 +139,9 @@ class TestPanda:
             outcome = result(client, sent, timeout=60.0)
             assert outcome.status == GoalStatus.STATUS_SUCCEEDED and outcome.result.result.result == OK
             assert sim_time(client) - before == pytest.approx(500 * PHYSICS_STEP_S, abs=1e-9)
+            # The last feedback is published before the result, on another topic: it may arrive after it.
+            client.wait_for(lambda: sent.feedback and sent.feedback[-1].completed_steps == 500, 30.0,
+                            "the feedback of the last step")
             progress = [(f.completed_steps, f.remaining_steps) for f in sent.feedback]
             assert len(progress) >= 2 and progress[-1] == (500, 0)
             assert all(done + left == 500 for done, left in progress)
