@@ -27,6 +27,7 @@ class ChildProcess:
         self._own_group = own_group
         self._log: typing.IO[bytes] | None = None
         self._relay: threading.Thread | None = None
+        self._temporary_log = False  # the log is a file of its own in the temporary directory
         self.last_lines: collections.deque[str] = collections.deque(maxlen=LAST_LINES)
         if relay_output:  # output relayed line by line to the caller's stdout, its last lines kept
             self.log_path = pathlib.Path("/dev/null")
@@ -47,6 +48,7 @@ class ChildProcess:
                 prefix=f"{args[0]}-", suffix=".log", delete=False)
             self.log_path = pathlib.Path(handle.name)
             self._log = handle
+            self._temporary_log = True
         self.process = subprocess.Popen(
             [str(BIN / args[0]), *args[1:]], stdout=self._log, stderr=None if inherit_output else subprocess.STDOUT,
             start_new_session=own_group, env=dict(os.environ),
@@ -99,6 +101,11 @@ class ChildProcess:
             self._relay.join(2.0)
         return int(self.process.returncode)
 
+    def discard_log(self) -> None:
+        """Remove the log file this process was given in the temporary directory (call after :meth:`stop`)."""
+        if self._temporary_log:
+            self.log_path.unlink(missing_ok=True)
+
 
 @contextmanager
 def running(args: list[str], log_dir: pathlib.Path | None = None) -> Iterator[ChildProcess]:
@@ -110,6 +117,7 @@ def running(args: list[str], log_dir: pathlib.Path | None = None) -> Iterator[Ch
         code = child.stop()
         if code not in (0, -signal.SIGINT, 130):
             sys.stderr.write(f"--- {' '.join(args)} exited with {code}; last output:\n{child.output()[-3000:]}\n")
+        child.discard_log()
 
 
 def child_processes(parent: int) -> dict[str, int]:

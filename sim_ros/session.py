@@ -29,6 +29,14 @@ MsgT = TypeVar("MsgT")
 RESPONSE_QOS = QoSProfile(depth=1000)
 CLOSE_WAIT_S = 10.0  # [s of wall time] close() waits this long for the executor's callbacks and thread to end
 RESEND_S = 5.0  # [s of wall time] a request that may be sent twice, unanswered this long, is sent again
+# Services whose request may be sent twice (queries, and setting parameters to values): RosSession.call sends
+# them again every RESEND_S until answered. A reset, a step or a state change is never sent twice.
+SENT_AGAIN = frozenset({
+    "GetParameters", "DescribeParameters", "ListParameters", "GetParameterTypes", "SetParameters",
+    "SetParametersAtomically", "GetState", "GetAvailableStates", "GetAvailableTransitions", "GetEntityState",
+    "GetEntities", "GetEntitiesStates", "GetEntityBounds", "GetEntityInfo", "GetSimulatorFeatures",
+    "GetSimulationState", "GetSpawnables", "GetBatteryLevel", "ComputeIK",
+})
 SPIN_WAKE_S = 0.5  # [s of wall time] the spin thread looks at least this often whether the session is closing
 
 T = TypeVar("T")
@@ -233,11 +241,13 @@ class RosSession:
         response (the server's reply side may not have matched it yet), and discovery per call
         costs time. For the same reason the first call to a server that has just started can lose
         its response; a request without side effects (a query) can be sent again every
-        ``resend_every_s`` wall seconds until one is answered.
+        ``resend_every_s`` wall seconds until one is answered. The types of :data:`SENT_AGAIN` are by default.
 
         Raises:
             WaitTimeout: the service did not appear, or no response came, within ``timeout`` wall seconds.
         """
+        if resend_every_s is None and getattr(srv_type, "__name__", "") in SENT_AGAIN:
+            resend_every_s = RESEND_S
         key = (srv_type, name)
         client = self._service_clients.get(key)
         if client is None:

@@ -20,6 +20,7 @@ import numpy as np
 
 from robot_models import RobotSpec
 from sim_bridge.arm.poses import mat_to_quat, quat_to_mat
+from sim_bridge.arm.types import ArmStatus
 from sim_bridge.entities import descends
 from sim_bridge.errors import InvalidGoalError, UnknownNameError
 from sim_bridge.state import Pose
@@ -153,3 +154,28 @@ def yaw_of(quat_wxyz: np.ndarray) -> float:
 def tilt_of(quat_wxyz: np.ndarray) -> float:
     """Angle between a body's z axis and world z [rad]."""
     return math.acos(min(1.0, max(-1.0, float(quat_to_mat(quat_wxyz)[2, 2]))))
+
+
+def in_palms(model: mujoco.MjModel, data: mujoco.MjData, palms: tuple[Palm, Palm], object_name: str,
+             min_force_n: float) -> bool:
+    """Whether both palms press on the object with at least ``min_force_n`` [N] each (False for an unknown name)."""
+    try:
+        body = int(model.body(object_name).id)
+    except KeyError:
+        return False
+    return min(grip_forces(model, data, palms, body)) >= min_force_n
+
+
+def squeeze_depths(palms: tuple[Palm, Palm], statuses: list[ArmStatus], yaw: float) -> list[float]:
+    """The squeeze depth [m] of a grip that holds on its arms' held joint targets, for a new grip to take it
+    over: how far the held (commanded) palm faces lie past the measured ones along the grip's normal (yaw [rad]),
+    the same for both palms (their mean: arms that sag sideways together shift both faces one way, which is
+    no squeeze)."""
+    box = yaw_matrix(yaw)
+    depths = []
+    for palm, status in zip(palms, statuses, strict=True):
+        normal = -palm.side * box[:, 1]
+        held, tool = (pose.position + quat_to_mat(pose.orientation_wxyz) @ palm.position_in_tool
+                      for pose in (status.reference_pose, status.tool_pose))
+        depths.append(float((held - tool) @ normal))
+    return [sum(depths) / 2.0] * 2

@@ -77,7 +77,7 @@ class FetchPlan:
         body: the object's body id.
         half_size: its box's half sizes along its own x, y, z [m], shape (3,).
         mass_kg: [kg].
-        pick: the stance at the object.
+        pick: the stance at the object (the place's, for an object already in the palms).
         place: the stance at the place.
         place_center: where the object's centre rests at the end, world frame [m], shape (3,).
         place_top_z: the place table's top height [m].
@@ -138,8 +138,9 @@ def check_place_on_a_table(robot: RobotSpec, x: float, y: float) -> None:
 
 
 def plan_fetch(robot: RobotSpec, data: mujoco.MjData, goal: FetchGoal, grid: OccupancyGrid,
-               config: StanceConfig) -> FetchPlan:
-    """Judge the goal in the current state and plan its stances.
+               config: StanceConfig, in_hand: bool = False) -> FetchPlan:
+    """Judge the goal in the current state and plan its stances (``in_hand``: the palms hold the object
+    already; only the place is planned, and the plan's pick is the place's stance).
 
     Raises:
         UnknownNameError: not an object of the scene (the message lists them).
@@ -152,22 +153,26 @@ def plan_fetch(robot: RobotSpec, data: mujoco.MjData, goal: FetchGoal, grid: Occ
     position, quat = data.xpos[body], data.xquat[body]
     x, y, z = (float(v) for v in position)
     table = table_under(tables, x, y)
-    if table is None or abs(z - (table.height + float(half[2]))) > REST_TOLERANCE_M or tilt_of(quat) > MAX_REST_TILT_RAD:
+    if not in_hand and (table is None or abs(z - (table.height + float(half[2]))) > REST_TOLERANCE_M
+                        or tilt_of(quat) > MAX_REST_TILT_RAD):
         raise InvalidGoalError(f"object {goal.object_name!r} at ({x:.2f}, {y:.2f}, {z:.2f}) does not rest upright on a "
                                f"table top ({', '.join(t.name for t in tables) or 'no tables'})")
-    pick = plan_stance(table, x, y, yaw_of(quat), config)
     place_table = table_under(tables, goal.place_x, goal.place_y)
     place = None if place_table is None else plan_stance(place_table, goal.place_x, goal.place_y, goal.place_yaw, config)
     if place_table is None or place is None or not _fits(place_table, goal.place_x, goal.place_y, place.yaw, half):
         raise InvalidGoalError(f"place ({goal.place_x:.2f}, {goal.place_y:.2f}) does not keep {goal.object_name!r} "
                                "whole on a table top; table tops: " + ", ".join(_bounds(t) for t in tables))
+    if in_hand or table is None:
+        pick, pick_top_z = place, place_table.height
+    else:
+        pick, pick_top_z = plan_stance(table, x, y, yaw_of(quat), config), table.height
     inflated = grid.inflated(NAVIGATION_INFLATION_M)
     for stance, what in ((pick, "the object"), (place, "the place")):
         if not inflated.is_free(stance.approach_x, stance.approach_y):
             raise InvalidGoalError(f"the approach to {what} ({stance.approach_x:.2f}, {stance.approach_y:.2f}) is "
                                    "blocked by an obstacle")
     center = np.array([goal.place_x, goal.place_y, place_table.height + float(half[2])])
-    return FetchPlan(body, half, mass, pick, place, center, place_table.height, table.height)
+    return FetchPlan(body, half, mass, pick, place, center, place_table.height, pick_top_z)
 
 
 def _bounds(table: Obstacle) -> str:

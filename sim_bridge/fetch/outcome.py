@@ -1,12 +1,15 @@
-"""How a fetch ends: the outcomes judged from the measured state (placement, a drop, a walk's failure)."""
+"""How a fetch ends: the outcomes judged from the measured state (placement, a drop, a walk's failure), and
+what it draws."""
 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
-from sim_bridge.skills.base import SkillOutcome
+from sim_bridge.fetch.goal import FetchPlan
+from sim_bridge.skills.base import GoalVisuals, Skill, SkillOutcome, visuals_of
 
 PASSED_ON = ("FELL", "TIMEOUT", "BATTERY_LOW")  # a walk's failures the fetch ends with as they are
 
@@ -51,3 +54,15 @@ class Lasting:
 
     def clear(self) -> None:
         self._since = None
+
+
+def fetch_visuals(plan: FetchPlan | None, walk: Skill | None) -> GoalVisuals:
+    """A fetch's drawing: its place (world frame), and while it walks the walk's own path, goal pose and footsteps."""
+    inner = visuals_of(walk) if walk is not None else None
+    target = None
+    if plan is not None:
+        x, y, z = (float(v) for v in plan.place_center)
+        target = (x, y, z)
+    if inner is None:
+        return GoalVisuals(target_xyz=target)
+    return replace(inner, target_xyz=target)

@@ -31,15 +31,16 @@ import numpy as np
 from robot_models import RobotSpec
 from sim_bridge.arm import ArmController, PickPlaceStage
 from sim_bridge.arm.poses import quat_to_mat
+from sim_bridge.fetch import bimanual
 from sim_bridge.fetch.align import StanceAligner
 from sim_bridge.fetch.bimanual import Palm, grip_forces, palms_of, set_palm_hand_pose, tilt_of, tool_target, yaw_matrix, yaw_of
-from sim_bridge.fetch.goal import FetchGoal, FetchPlan, plan_fetch
+from sim_bridge.fetch.goal import NAVIGATION_INFLATION_M, FetchGoal, FetchPlan, plan_fetch
 from sim_bridge.fetch.grip import GripConfig
-from sim_bridge.fetch.outcome import Lasting, dropped, placement, walk_failure
+from sim_bridge.fetch.outcome import Lasting, dropped, fetch_visuals, placement, walk_failure
 from sim_bridge.fetch.stance import Stance, StanceConfig, wrap
 from sim_bridge.locomotion import WalkingController
 from sim_bridge.navigation import OccupancyGrid
-from sim_bridge.skills.base import GoalVisuals, SkillOutcome, Values, visuals_of
+from sim_bridge.skills.base import GoalVisuals, SkillOutcome, Values
 from sim_bridge.skills.locomotion import LEGS, NavigateGoal, NavigateSkill, WalkGoal, WalkSkill
 from sim_bridge.state import Pose
 
@@ -103,13 +104,22 @@ class FetchSkill:
         return int(self.stage)
 
     def start(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
-        self.plan = plan_fetch(self.robot, data, self.goal, self.grid, self.stance_config)
+        held = bimanual.in_palms(model, data, self.palms, self.goal.object_name, self.config.contact_force_n)
+        self.plan = plan_fetch(self.robot, data, self.goal, self.grid, self.stance_config, in_hand=held)
         self._base_qpos = int(model.jnt_qposadr[model.body_jntadr[model.body(self.robot.base_body).id]])
         self._t0 = self._now = float(data.time)
         set_palm_hand_pose(self.robot, model, data)  # the hands take their palm pose on the way
         # Standing at the tables the legs keep balancing actively: the arms' reaches and the box's weight would
         # rock a robot standing on its leg servos, and its hands with it.
         self.walker.hold_balance(True)
+        if held:  # in the palms already (a fetch canceled while it held it): straight to the place, same grip
+            self._yaw = self._grip_yaw(float(yaw_of(data.xquat[self.plan.body])), data)
+            self._depth = bimanual.squeeze_depths(self.palms, [self.arms.status(p.arm) for p in self.palms], self._yaw)
+            self._enter("back_off", Stage.TRANSPORT)
+            x, y, _ = self._base(data)
+            if not self.grid.inflated(NAVIGATION_INFLATION_M).is_free(x, y):  # at a table: step back first
+                self._walk_by(-self.stance_config.approach_back_m, model, data)
+            return
         self._enter("navigate_pick", Stage.APPROACH)
         pick = self.plan.pick
         self._start_walk(NavigateSkill(self.walker, self.robot.base_body, self.grid,
@@ -130,15 +140,7 @@ class FetchSkill:
 
     def visuals(self) -> GoalVisuals:
         """The place (world frame), and while walking the walk's own path, goal pose and footsteps."""
-        plan = self.plan
-        inner = visuals_of(self._walk) if self._walk is not None else None
-        target = None
-        if plan is not None:
-            x, y, z = (float(v) for v in plan.place_center)
-            target = (x, y, z)
-        if inner is None:
-            return GoalVisuals(target_xyz=target)
-        return replace(inner, target_xyz=target)
+        return fetch_visuals(self.plan, self._walk)
 
     def update(self, model: mujoco.MjModel, data: mujoco.MjData, control_dt: float) -> SkillOutcome | None:
         outcome = self._update(model, data, control_dt)
@@ -253,7 +255,7 @@ class FetchSkill:
             self._center = box - back * yaw_matrix(self._yaw)[:, 0] + np.array([0.0, 0.0, up])
             self._center_goal = self._center.copy()
             self._depth = [-config.clearance_m, -config.clearance_m]
-            return self._set_grip(data, config.reach_speed_mps)
+            self._set_grip_speed(config.reach_speed_mps)
         elif phase == "reach":
             self.stage_progress = min(1.0, min(self.arms.status(p.arm).progress for p in self.palms))
             if self._arms_arrived(config.reach_tolerance_m):
@@ -317,7 +319,7 @@ class FetchSkill:
                 self._center = self._center + np.array([0.0, 0.0, config.retreat_rise_m])
                 self._center_goal = self._center.copy()
                 self._depth = [-config.ready_clearance_m] * 2  # wide of the box, above its top
-                self._set_grip(data, config.retreat_speed_mps)
+                self._set_grip_speed(config.retreat_speed_mps)
         elif phase == "raise":
             # The box is down and let go: a hand that cannot rise all the way (a turned grip near the edge of
             # its reach) only ends the rise early.
@@ -411,11 +413,7 @@ class FetchSkill:
         self._center += self.config.ready_forward_m * forward
         self._center_goal = self._center.copy()
         self._depth = [-self.config.ready_clearance_m] * 2
-        self._set_grip(data, self.config.reach_speed_mps)
-
-    def _set_grip(self, data: mujoco.MjData, speed: float) -> SkillOutcome | None:
-        self._set_grip_speed(speed)
-        return None
+        self._set_grip_speed(self.config.reach_speed_mps)
 
     def _set_grip_speed(self, speed: float) -> None:
         """Target both tools at the commanded grip (centre, yaw, each palm's depth), moving at ``speed`` [m/s]."""
@@ -442,7 +440,7 @@ class FetchSkill:
                 change = float(np.clip(config.squeeze_gain * error * config.grip_period_s, -config.max_squeeze_step_m,
                                        config.max_squeeze_step_m))
                 self._depth[side] = float(np.clip(self._depth[side] + change, -config.clearance_m, config.max_depth_m))
-        self._set_grip(data, 2.0)
+        self._set_grip_speed(2.0)
 
     def _at_goal(self) -> bool:
         return float(np.linalg.norm(self._center_goal - self._center)) < 1e-6

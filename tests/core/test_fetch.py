@@ -137,7 +137,7 @@ def test_a_stance_faces_the_nearest_edge_and_a_deep_point_has_none(robot):
         plan_stance(first, 1.2, 0.0, 0.0, config)
 
 
-def test_cancel_while_carrying_stops_and_stands_holding_the_box(robot):
+def test_cancel_while_carrying_stops_and_stands_holding_the_box_and_a_new_fetch_carries_it_on(robot):
     rig = FetchRig.of(robot)
     skill = rig.skill(FetchGoal("box", *PLACE))
     run = rig.legs.start(3, skill, rig.sim.model, rig.sim.data)
@@ -158,7 +158,17 @@ def test_cancel_while_carrying_stops_and_stands_holding_the_box(robot):
     box = sim.data.body("box")
     assert box.xpos[2] > g1_tables.TABLE_TOP_Z_M + 0.1, "still held up"
     assert min(grip_forces(sim.model, sim.data, palms_of(robot), sim.model.body("box").id)) > 5.0
-    _release(rig)
+
+    # A new fetch of the box it holds goes straight to the place with the same grip.
+    again = rig.skill(FetchGoal("box", *PLACE))
+    resumed = rig.legs.start(5, again, sim.model, sim.data)
+    assert again.stage is PickPlaceStage.TRANSPORT
+    carried = Trace()
+    _run(rig, again, resumed, carried)
+    assert resumed.status is SkillStatus.SUCCEEDED, resumed.outcome
+    assert carried.stages[0] == PickPlaceStage.TRANSPORT and carried.stages == sorted(carried.stages)
+    assert carried.min_grip_while_carried > 5.0 and not carried.fallen
+    assert np.linalg.norm(sim.data.body("box").xpos[:2] - np.array(PLACE)) < 0.02
 
 
 def test_an_object_that_leaves_the_palms_while_carried_ends_the_fetch_as_dropped(robot):

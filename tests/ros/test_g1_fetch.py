@@ -2,7 +2,8 @@
 robot to the box, squeezes it between both palms, lifts it, carries it to the second table and puts it down
 within 2 cm of the place, with feedback at every stage, after the box was moved on the first table through
 /sim/set_entity_state; a MoveArm goal for an arm the fetch moves is refused with the reason; a cancel while
-it carries stops the robot, which stands holding the box.
+it carries stops the robot, which stands holding the box, and a new goal for the box it holds goes straight to
+the place.
 """
 
 from __future__ import annotations
@@ -82,7 +83,7 @@ def test_one_pick_place_goal_fetches_the_moved_box_to_the_second_table(client):
         assert process.alive(), process.output()
 
 
-def test_a_pick_place_goal_walks_grasps_lifts_and_carries_the_box_and_a_cancel_keeps_it_held(client):
+def test_a_pick_place_goal_walks_grasps_lifts_and_carries_the_box_a_cancel_keeps_it_held_and_a_new_goal_places_it(client):
     rest_z = g1_tables.TABLE_TOP_Z_M + g1_tables.BOX.half_size[2]
     with running(["bringup", "--robot", "g1", "--scene", "tables", "--rtf", "0"]) as process:
         pick_place = ready_client(client, PickPlace, "/pick_place", timeout=90.0)
@@ -128,4 +129,14 @@ def test_a_pick_place_goal_walks_grasps_lifts_and_carries_the_box_and_a_cancel_k
         assert outcome.status == GoalStatus.STATUS_CANCELED, (outcome.result.error_code, outcome.result.error_msg)
         assert "holding the object" in outcome.result.error_msg, outcome.result.error_msg
         assert _box_z(client) > rest_z + 0.05, "still held up after the cancel"
+
+        # A new PickPlace for the box it holds goes straight to the place, and puts it down there.
+        again = send(client, pick_place, _place_goal())
+        assert again.handle.accepted
+        finished = result(client, again, timeout=FETCH_WAIT_S)
+        assert finished.status == GoalStatus.STATUS_SUCCEEDED, (finished.result.error_code, finished.result.error_msg)
+        stages = [f.stage for f in again.feedback]
+        assert stages and min(stages) == PickPlace.Feedback.TRANSPORT and stages == sorted(stages), stages
+        p = _box(client).pose.position
+        assert math.dist((p.x, p.y), PLACE) <= PLACEMENT_TOLERANCE_M, (p.x, p.y)
         assert process.alive(), process.output()
