@@ -36,7 +36,7 @@ def test_the_panda_wrist_reads_the_hand_then_zero_after_calibration(client):
 
 def test_after_calibration_the_wrist_reads_the_weight_of_the_box_it_carries(client):
     """Along the gripper's axis (vertical: the Panda grasps from above), the calibrated wrench reads ~0 while the
-    fingers close on the box on the table, and the box's weight (0.05 kg: 0.49 N) once it is lifted and carried,
+    fingers close on the box on the table, and the box's weight (0.05 kg: 0.49 N) while it is carried,
     against the sensor's noise, offset and drift. (Across the axis, the carry's accelerations show too.)"""
     with running(["bringup", "--robot", "panda", "--rtf", "2.0"]):
         pick_place = ready_client(client, PickPlace, "/pick_place", timeout=90.0)
@@ -66,7 +66,9 @@ def test_after_calibration_the_wrist_reads_the_weight_of_the_box_it_carries(clie
 
         weight = panda_constants.BOX_MASS * 9.81
         grasping = axial_force((PickPlace.Feedback.GRASP,))
-        carrying = axial_force((PickPlace.Feedback.LIFT, PickPlace.Feedback.TRANSPORT))
+        # Carried: the lift's first moments still rest part of the box on the table (the lift's mean read 0.40 of
+        # the 0.49 N where the carry's read 0.51), and the lift's accelerations add to the weight.
+        carrying = axial_force((PickPlace.Feedback.TRANSPORT,))
         assert abs(grasping) < 0.15, f"{grasping:.3f} N along the gripper while the box still rests on the table"
         assert abs(carrying - grasping) == pytest.approx(weight, abs=0.12), \
             f"{carrying - grasping:+.3f} N along the gripper once the {weight:.3f} N box is lifted"
