@@ -37,7 +37,6 @@ SENT_AGAIN = frozenset({
     "GetEntities", "GetEntitiesStates", "GetEntityBounds", "GetEntityInfo", "GetSimulatorFeatures",
     "GetSimulationState", "GetSpawnables", "GetBatteryLevel", "ComputeIK",
 })
-SPIN_WAKE_S = 0.5  # [s of wall time] the spin thread looks at least this often whether the session is closing
 
 T = TypeVar("T")
 
@@ -132,7 +131,8 @@ class RosSession:
         """
         while self.context.ok() and not self._closing:
             try:
-                self._executor.spin_once(timeout_sec=SPIN_WAKE_S)
+                self._executor.spin()  # (spin_once with a timeout makes an rcl timer per wait: slower)
+                return
             except ExternalShutdownException:
                 return
             except Exception:  # noqa: BLE001 - any callback's exception: reported, and the spin goes on
