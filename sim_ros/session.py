@@ -255,16 +255,8 @@ class RosSession:
         self.wait_for(client.service_is_ready, timeout, f"service {name}")
         if resend_every_s is None:
             return self.wait_future(client.call_async(request), timeout, f"response of {name}")
-        deadline = time.monotonic() + timeout
-        while True:
-            remaining = deadline - time.monotonic()
-            if remaining <= 0.0:
-                raise WaitTimeout(f"timed out after {timeout:.1f} s waiting for response of {name}")
-            future = client.call_async(request)
-            try:
-                return self.wait_future(future, min(resend_every_s, remaining), f"response of {name}")
-            except WaitTimeout:
-                client.remove_pending_request(future)
+        return self._until_answered(lambda: client.call_async(request), timeout, f"response of {name}",
+                                    every_s=resend_every_s, forget=client.remove_pending_request)
 
     def parameters(self, node_name: str) -> AsyncParameterClient:
         """Client of a node's standard parameter services (what ``ros2 param`` calls)."""
@@ -289,10 +281,11 @@ class RosSession:
             raise KeyError(f"{node_name} has no parameter {name!r}")
         return Parameter.from_parameter_msg(ParameterMsg(name=name, value=response.values[0])).value
 
-    def _until_answered(self, send: Callable[[], Future], timeout: float, what: str) -> Any:
-        """Send a request that may be sent twice (a query, or setting a value) every :data:`RESEND_S` until
-        one is answered: a node that has just started can lose the response to a first request while its
-        side of discovery catches up (seen: 90 s without an answer).
+    def _until_answered(self, send: Callable[[], Future], timeout: float, what: str, every_s: float = RESEND_S,
+                        forget: Callable[[Future], Any] | None = None) -> Any:
+        """Send a request that may be sent twice (a query, or setting a value) every ``every_s`` wall seconds
+        until one is answered: a node that has just started can lose the response to a first request while
+        its side of discovery catches up (seen: 90 s without an answer). ``forget`` drops an unanswered one.
 
         Raises:
             WaitTimeout: no answer within ``timeout`` wall seconds.
@@ -302,7 +295,9 @@ class RosSession:
             remaining = deadline - time.monotonic()
             if remaining <= 0.0:
                 raise WaitTimeout(f"timed out after {timeout:.1f} s waiting for {what}")
+            future = send()
             try:
-                return self.wait_future(send(), min(RESEND_S, remaining), what)
+                return self.wait_future(future, min(every_s, remaining), what)
             except WaitTimeout:
-                continue
+                if forget is not None:
+                    forget(future)

@@ -43,7 +43,6 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 SHELL_ONLY = ("make ", ". ", "export ", "cp ")
 STARTERS = ("sim_node", "bringup", "ros2 run sim ", "sim up")
 READY_S = 90.0
-RESEND_S = 5.0  # [s of wall time] a query or an idempotent request not answered this long is sent again
 GOAL_WALL_S = 400.0
 
 
@@ -169,10 +168,8 @@ class Shell:
         self._require_nodes(command)
         _, _, _, node, name, value = shlex.split(command)
         request = SetParameters.Request(parameters=[Parameter(name=name, value=parameter_value(value))])
-        # Setting a value twice is harmless: sent again until answered (a node just started can lose the
-        # response to its first request while its side of discovery catches up).
-        answer = self.client.call(SetParameters, f"{node}/set_parameters", request, timeout=READY_S,
-                                  resend_every_s=RESEND_S)
+        # sent again until answered (RosSession.call: SetParameters is of SENT_AGAIN)
+        answer = self.client.call(SetParameters, f"{node}/set_parameters", request, timeout=READY_S)
         assert answer.results[0].successful, f"{command}: {answer.results[0].reason}"
         if self.running_goal is not None and name == "walking_speed":
             self.check_pace(float(value))
@@ -196,7 +193,7 @@ class Shell:
         _, _, _, node, name = shlex.split(command)
         self.client.wait_for(lambda: self._service_up(f"{node}/describe_parameters"), READY_S, f"{node}")
         answer = self.client.call(DescribeParameters, f"{node}/describe_parameters",
-                                  DescribeParameters.Request(names=[name]), timeout=READY_S, resend_every_s=RESEND_S)
+                                  DescribeParameters.Request(names=[name]), timeout=READY_S)
         assert answer.descriptors[0].type != ParameterType.PARAMETER_NOT_SET, f"{command}: not declared"
         assert answer.descriptors[0].description
 

@@ -27,7 +27,7 @@ READY_S = 90.0
 def set_walking_speed(client, value: float) -> None:
     request = SetParameters.Request(parameters=[Parameter(
         name="walking_speed", value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value))])
-    answer = client.call(SetParameters, "/locomotion/set_parameters", request, timeout=READY_S, resend_every_s=5.0)
+    answer = client.call(SetParameters, "/locomotion/set_parameters", request, timeout=READY_S)
     assert answer.results[0].successful, answer.results[0].reason
 
 
