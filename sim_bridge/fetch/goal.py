@@ -50,7 +50,9 @@ class FetchGoal:
     place_y: float
     place_yaw: float | None = None
     grip_force_n: float = 25.0
-    lift_height_m: float = 0.10
+    # 5 cm: lifting 10 cm from the squeeze drove the elbows to their limit and the arms onto an elbows-out
+    # branch (shoulder roll 0.3 -> 1.2 rad), from which lowering at the place ran into the wrists' limits.
+    lift_height_m: float = 0.05
     walking_speed_mps: float = 0.3
     placement_tolerance_m: float = 0.02
     timeout_s: float = 240.0
