@@ -91,6 +91,10 @@ class ObjectLayout:
         mass_kg: [kg].
         xy: centre at rest, world frame [m]; the object is not rotated.
         rgba: colour.
+        touches_shell: whether it collides with the robot's body shell and palm pads (contype
+            :data:`~robot_models.g1_constants.SHELL_CONTYPE`) besides the hands' grasp geoms. The small
+            objects do not: the palm pads stand 4.5 cm proud of the palm, where a hand closing on a
+            5 cm object holds it, and the hand's shell sphere fills the palm's hollow.
     """
 
     name: str
@@ -99,6 +103,7 @@ class ObjectLayout:
     mass_kg: float
     xy: tuple[float, float]
     rgba: Rgba
+    touches_shell: bool = True
 
     def __post_init__(self) -> None:
         for axis, half in zip("xyz", self.half_size, strict=True):
@@ -115,8 +120,10 @@ TABLES: Final = (PICK_TABLE, PLACE_TABLE)
 # On the first table, near its edge facing the robot. The box is 0.25 m wide along y (between the
 # palms of a robot facing the table), 0.20 m deep and 0.15 m high.
 BOX: Final = ObjectLayout("box", Shape.BOX, (0.10, 0.125, 0.075), 0.7, (1.02, 0.0), (0.85, 0.55, 0.25, 1.0))
-CUBE: Final = ObjectLayout("cube", Shape.BOX, (0.0275, 0.0275, 0.0275), 0.1, (1.0, -0.35), (0.2, 0.45, 0.85, 1.0))
-CAN: Final = ObjectLayout("can", Shape.CYLINDER, (0.033, 0.033, 0.06), 0.3, (1.0, 0.35), (0.8, 0.15, 0.15, 1.0))
+CUBE: Final = ObjectLayout("cube", Shape.BOX, (0.0275, 0.0275, 0.0275), 0.1, (1.0, -0.35), (0.2, 0.45, 0.85, 1.0),
+                           touches_shell=False)
+CAN: Final = ObjectLayout("can", Shape.CYLINDER, (0.033, 0.033, 0.06), 0.3, (1.0, 0.35), (0.8, 0.15, 0.15, 1.0),
+                          touches_shell=False)
 OBJECTS: Final = (BOX, CUBE, CAN)
 OBJECTS_TABLE: Final = PICK_TABLE  # the table the objects rest on at the keyframe
 
@@ -152,7 +159,7 @@ def _add_object(world: mujoco.MjsBody, item: ObjectLayout) -> None:
         kind, size = mujoco.mjtGeom.mjGEOM_CYLINDER, [item.half_size[0], item.half_size[2], 0.0]
     body.add_geom(name=item.name, type=kind, size=size, mass=item.mass_kg, condim=OBJECT_CONDIM,
                   friction=list(OBJECT_FRICTION), solref=list(OBJECT_SOLREF), contype=1,
-                  conaffinity=1 | names.SHELL_CONTYPE, rgba=list(item.rgba))
+                  conaffinity=1 | names.SHELL_CONTYPE if item.touches_shell else 1, rgba=list(item.rgba))
 
 
 def add_tables_and_objects(spec: mujoco.MjSpec) -> tuple[tuple[Obstacle, ...], tuple[str, ...]]:
