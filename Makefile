@@ -71,8 +71,8 @@ bench-idle: setup
 bench-scenario: setup
 	$(PY) benchmarks/scenario_bench.py
 
-bench-fetch: setup  ## the G1 fetches the box over 50 seeded layouts (core, no ROS)
-	$(PY) benchmarks/fetch_bench.py
+bench-fetch: setup  ## the G1 fetches the box over 50 seeded layouts in the core, then 5 of them through ROS
+	$(PY) benchmarks/fetch_bench.py --ros 5
 
 clean:
 	rm -rf $(VENV) build

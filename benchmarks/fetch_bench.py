@@ -5,7 +5,8 @@ a random yaw, and asks for a random place on the second table; the cube and the 
 table's far side, out of the way. Prints the success rate, the placement error (median, max), falls, drops,
 the time per task (sim) and wall/sim.
 
-Run: ``PYTHONPATH=. .venv/bin/python benchmarks/fetch_bench.py [--layouts 50] [--seed 0] [--workers 2]``.
+Run: ``PYTHONPATH=. .venv/bin/python benchmarks/fetch_bench.py [--layouts 50] [--seed 0] [--workers 2] [--ros 5]``;
+``--ros N`` then runs the first N layouts through ROS (``fetch_ros.py``: one bring-up, a PickPlace goal each).
 Headless, seeded; each layout runs in a fresh simulation (the same layout gives the same numbers).
 """
 
@@ -103,22 +104,45 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--workers", type=int, default=2, help="processes (each layout is single-threaded)")
     parser.add_argument("--only", default="", help="run only these layouts of the seeded set, e.g. 13,17")
+    parser.add_argument("--ros", type=int, default=0, metavar="N",
+                        help="then the first N layouts through ROS (one bring-up; reset, objects set, one goal each)")
+    parser.add_argument("--no-core", action="store_true", help="skip the core runs (with --ros)")
     options = parser.parse_args()
     cases = layouts(options.layouts, options.seed)
     if options.only:
         cases = [cases[int(i)] for i in options.only.split(",")]
-    print(f"fetch benchmark: {len(cases)} layouts, seed {options.seed}, {options.workers} workers", flush=True)
-    wall0 = time.perf_counter()
-    results: list[Outcome] = []
-    with multiprocessing.get_context("spawn").Pool(options.workers) as pool:
-        for result in pool.imap_unordered(fetch, cases):
+    if not options.no_core:
+        print(f"fetch benchmark: {len(cases)} layouts, seed {options.seed}, {options.workers} workers", flush=True)
+        wall0 = time.perf_counter()
+        results: list[Outcome] = []
+        with multiprocessing.get_context("spawn").Pool(options.workers) as pool:
+            for result in pool.imap_unordered(fetch, cases):
+                results.append(result)
+                _say(result)
+        _summary(results, "wall/sim per layout (one process each)", time.perf_counter() - wall0)
+    if options.ros:
+        from fetch_ros import fetch_through_ros  # sets the ROS environment before rclpy is imported
+
+        print(f"\nthrough ROS: the first {options.ros} layouts, one bring-up (as fast as possible), a plain PickPlace "
+              "client", flush=True)
+        wall0 = time.perf_counter()
+        results = []
+        for result in fetch_through_ros(cases[:options.ros]):
             results.append(result)
-            layout = result.layout
-            print(f"  #{layout.index:2d} box ({layout.box_xy[0]:.2f}, {layout.box_xy[1]:+.2f}) yaw "
-                  f"{math.degrees(layout.box_yaw):+5.1f} deg -> ({layout.place_xy[0]:.2f}, {layout.place_xy[1]:.2f}): "
-                  f"{result.code:16s} {result.placement_error * 1e3:6.1f} mm  sim {result.sim_s:5.1f} s  "
-                  f"wall/sim {result.wall_s / max(result.sim_s, 1e-9):.2f}  {'' if result.code == 'SUCCESS' else result.message}",
-                  flush=True)
+            _say(result)
+        _summary(results, "wall/sim per fetch through ROS", time.perf_counter() - wall0)
+
+
+def _say(result: Outcome) -> None:
+    layout = result.layout
+    print(f"  #{layout.index:2d} box ({layout.box_xy[0]:.2f}, {layout.box_xy[1]:+.2f}) yaw "
+          f"{math.degrees(layout.box_yaw):+5.1f} deg -> ({layout.place_xy[0]:.2f}, {layout.place_xy[1]:.2f}): "
+          f"{result.code:16s} {result.placement_error * 1e3:6.1f} mm  sim {result.sim_s:5.1f} s  "
+          f"wall/sim {result.wall_s / max(result.sim_s, 1e-9):.2f}  {'' if result.code == 'SUCCESS' else result.message}",
+          flush=True)
+
+
+def _summary(results: list[Outcome], wall_label: str, wall_s: float) -> None:
     ok = [r for r in results if r.code == "SUCCESS"]
     errors = [r.placement_error * 1e3 for r in ok]
     print(f"\nsuccess: {len(ok)}/{len(results)} = {100.0 * len(ok) / max(len(results), 1):.0f}%  (goal >= 95%)")
@@ -129,9 +153,8 @@ def main() -> None:
           f"failures by code: {dict(sorted(_count(r.code for r in results if r.code != 'SUCCESS').items()))}")
     print(f"time per task [s of sim]: median {statistics.median(r.sim_s for r in results):.1f}, "
           f"max {max(r.sim_s for r in results):.1f}")
-    print(f"wall/sim per layout (one process each): median "
-          f"{statistics.median(r.wall_s / max(r.sim_s, 1e-9) for r in results):.2f}; "
-          f"whole benchmark {time.perf_counter() - wall0:.0f} s of wall time")
+    print(f"{wall_label}: median {statistics.median(r.wall_s / max(r.sim_s, 1e-9) for r in results):.2f}; "
+          f"whole run {wall_s:.0f} s of wall time", flush=True)
 
 
 def _count(codes: Iterable[str]) -> dict[str, int]:

@@ -228,8 +228,11 @@ class FetchSkill:
         if phase == "navigate_pick":
             # Face the stance's heading where the navigation ended, hands still low: walking on with the hands
             # raised and the heading off would sweep them across the table into the object.
+            # The spot is on the stance's line, level with the feet: the hands rise only once on the line.
             x, y, _ = self._feet(data)
-            self._turn_spot = replace(plan.pick, x=x, y=y)
+            c, s = math.cos(plan.pick.yaw), math.sin(plan.pick.yaw)
+            along = c * (x - plan.pick.x) + s * (y - plan.pick.y)
+            self._turn_spot = replace(plan.pick, x=plan.pick.x + along * c, y=plan.pick.y + along * s)
             self._enter("turn_pick", Stage.APPROACH)
         elif phase == "turn_pick":
             assert self._turn_spot is not None
@@ -240,10 +243,10 @@ class FetchSkill:
         elif phase == "ready_pick":
             if self._arms_arrived(config.ready_tolerance_m) or elapsed > config.move_timeout_s:
                 self._hold_arms()
-                self._enter("walk_pick", Stage.APPROACH)
-                self._walk_onto(plan.pick, model, data)
-        elif phase == "walk_pick":
-            self._enter("align_pick", Stage.APPROACH)
+                # Onto the stance closed-loop on the feet (forward, sideways and turning): a straight walk
+                # drifts sideways (7-10 cm over half a metre with the hands raised), and raised hands a few
+                # centimetres off the line push the object.
+                self._enter("align_pick", Stage.APPROACH)
         elif phase == "align_pick":
             if not self._align(plan.pick, data, elapsed):
                 return None
@@ -289,10 +292,7 @@ class FetchSkill:
                                            NavigateGoal(place.approach_x, place.approach_y, place.yaw),
                                            self._nav_settings()), model, data)
         elif phase == "navigate_place":
-            self._enter("walk_place", Stage.TRANSPORT)
-            self._walk_onto(plan.place, model, data)
-        elif phase == "walk_place":
-            self._enter("align_place", Stage.TRANSPORT)
+            self._enter("align_place", Stage.TRANSPORT)  # onto the stance closed-loop, as at the pick
         elif phase == "align_place":
             if self._align(plan.place, data, elapsed):
                 self._enter("over_place", Stage.PLACE)
@@ -385,11 +385,6 @@ class FetchSkill:
         """The midpoint between the soles (world x, y [m]) and the pelvis heading [rad]."""
         x, y = self.walker.feet_midpoint(data)
         return x, y, self._base(data)[2]
-
-    def _walk_onto(self, stance: Stance, model: mujoco.MjModel, data: mujoco.MjData) -> None:
-        x, y, yaw = self._feet(data)
-        distance = (stance.x - x) * math.cos(yaw) + (stance.y - y) * math.sin(yaw)
-        self._walk_by(distance, model, data)
 
     def _align(self, stance: Stance, data: mujoco.MjData, elapsed: float) -> bool:
         """Step onto the stance (see :class:`StanceAligner`); True once standing on it (or out of time)."""
