@@ -31,6 +31,7 @@ from sim_bridge.locomotion.actuation import Actuation, HandOver
 from sim_bridge.locomotion.adjustment import DcmState, StepAdjuster
 from sim_bridge.locomotion.command import ZERO, CommandFilter
 from sim_bridge.locomotion.estimation import Estimator
+from sim_bridge.locomotion.external import ExternalContacts
 from sim_bridge.locomotion.footsteps import FootstepPlanner, Reach
 from sim_bridge.locomotion.geometry import Footstep, Point, mid_angle, midpoint
 from sim_bridge.locomotion.params import GaitParameters
@@ -113,6 +114,11 @@ class WalkingController:
     def qp_fallback_count(self) -> int:
         """Control steps in which the torque QP failed and the previous contact forces were reused."""
         return self._wbc.fallback_count
+
+    @property
+    def external_contacts(self) -> ExternalContacts:
+        """The scene's contact forces on the robot besides its soles (a held object), as the QP last took them in."""
+        return self._wbc.external
 
     def set_velocity_command(self, vx: float, vy: float, wz: float) -> None:
         """Command a walking velocity in the base heading frame; zero stops and stands with the feet together.

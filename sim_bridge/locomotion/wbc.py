@@ -3,8 +3,9 @@
 The QP in full: decision variables x = [f (3 per sole corner, world frame) [N], qacc (nv)
 [m/s^2, rad/s^2]]. Equalities: the floating-base rows of M qacc + h = tau + J_c^T f
 (h = qfrc_bias - qfrc_passive), and the servo-driven joints' rows with their position servo's own
-torque. Inequalities: friction pyramids, bounded normal forces (a per-foot load scale), joint torque
-limits, a knee-bend limit. Costs: CoM acceleration (through the total contact force), pelvis and
+torque; h also holds the measured contact forces of the scene on the robot other than at its soles
+(:mod:`.external`: a held object). Inequalities: friction pyramids, bounded normal forces (a per-foot
+load scale), joint torque limits, a knee-bend limit. Costs: CoM acceleration (through the total contact force), pelvis and
 torso orientation, stance soles fixed (soft), swing sole tracking, posture, a small regularisation.
 
 How it is solved (the same optimum, found faster): the equality rows are solved exactly for the
@@ -35,6 +36,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 from robot_models.biped import BipedDescription
+from sim_bridge.locomotion.external import ExternalContacts
 from sim_bridge.locomotion.swing import SwingSample
 from sim_bridge.locomotion.wbc_layout import (
     CORNERS_PER_FOOT,
@@ -115,6 +117,8 @@ class WholeBodyQP:
         self.torso = model.body(biped.torso_body).id
         self.joints = joints = JointLayout.of(model, biped)
         self.feet = FootLayout.of(model, biped)
+        # The scene's other contacts on the robot (a held object, a table leant on), measured: see .external.
+        self.external = ExternalContacts(model, self.pelvis, self.feet.bodies)
         self.ne, self.nm = len(joints.eliminated), len(joints.motor_dofs)
         self.nz = FORCE_BLOCK + self.nm  # z = [f, qacc_m]
         self.torque_limit = joints.torque_limit
@@ -266,6 +270,9 @@ class WholeBodyQP:
         self._kinematics(model, data)
         mass = self._mass_matrix
         bias = np.subtract(data.qfrc_bias, data.qfrc_passive, out=self._bias)
+        external = self.external.update(model, data)
+        if external is not None:  # known forces on the robot: M qacc + h - J_ext^T f_ext = tau + J_c^T f
+            bias -= external
         contact_jac = self._contact_jac
         self._tasks.fill(data, self._rows[: 2 * N_TASK] @ data.qvel, targets.heading, targets.swing, self._task_weight)
         motor, base, servo = self._motor_dof_index, self._base_index, self._servo_dof_index

@@ -28,6 +28,9 @@ MAX_SIM_S = 150.0
 class Trace:
     stages: list[int] = field(default_factory=list)
     min_grip_while_carried: float = math.inf
+    tilt_walking_deg: list[float] = field(default_factory=list)  # the pelvis's tilt walking to the object
+    tilt_carrying_deg: list[float] = field(default_factory=list)  # ... and walking with it to the place
+    held_force_z_n: list[float] = field(default_factory=list)  # the QP's measured vertical force of the scene on the robot
     fallen: bool = False
     final_mode: LocomotionMode | None = None
 
@@ -46,6 +49,14 @@ def _run(rig: FetchRig, skill: FetchSkill, run: SkillRun, trace: Trace, until: f
                 trace.stages.append(skill.milestone)
             if skill.milestone == PickPlaceStage.TRANSPORT:
                 trace.min_grip_while_carried = min(trace.min_grip_while_carried, float(skill.feedback(sim.data)["grip_force"]))
+            phase = skill.feedback(sim.data)["phase"]
+            if phase in ("navigate_pick", "navigate_place"):
+                pelvis_z = sim.data.xmat[rig.sim.model.body(rig.robot.base_body).id].reshape(3, 3)[:, 2]
+                tilt = math.degrees(math.acos(min(1.0, float(pelvis_z[2]))))
+                (trace.tilt_walking_deg if phase == "navigate_pick" else trace.tilt_carrying_deg).append(tilt)
+            if phase == "navigate_place":
+                base_dof = int(rig.sim.model.jnt_dofadr[rig.sim.model.body_jntadr[rig.sim.model.body(rig.robot.base_body).id]])
+                trace.held_force_z_n.append(float(rig.walker.external_contacts.generalized[base_dof + 2]))
         trace.fallen = trace.fallen or rig.walker.status().fallen
 
 
@@ -88,6 +99,18 @@ def test_the_g1_fetches_the_box_to_the_second_table(fetched):
     for item in (g1_tables.CUBE, g1_tables.CAN):  # the other objects stay where they were
         rest = np.asarray(g1_tables.object_rest_position(item))
         assert np.linalg.norm(rig.sim.body_pose(item.name).position - rest) < 0.01
+
+
+def test_carrying_the_box_the_gait_stays_as_steady_as_unloaded(fetched):
+    """The whole-body QP takes the box's measured contact forces on the palms in (sim_bridge.locomotion.external):
+    walking with the box, the pelvis tilts about as little as walking without it (0.08 against 0.06 deg RMS
+    measured; 0.23 when the QP did not know of the box)."""
+    _, _, _, trace = fetched
+    rms = [math.sqrt(float(np.mean(np.square(tilts)))) for tilts in (trace.tilt_walking_deg, trace.tilt_carrying_deg)]
+    assert len(trace.tilt_carrying_deg) > 100 and rms[1] <= 2.0 * rms[0] + 0.02, f"pelvis tilt RMS unloaded / carrying: {rms}"
+    weight = g1_tables.BOX.mass_kg * 9.81
+    measured = -float(np.median(trace.held_force_z_n))
+    assert measured == pytest.approx(weight, rel=0.25), f"the QP's measured load {measured:.2f} N, the box weighs {weight:.2f} N"
 
 
 def test_the_fetch_reports_every_stage_in_order(fetched):
