@@ -32,7 +32,7 @@ def move_goal(x, y, z, quat_xyzw=DOWN, position_tolerance=0.001, orientation_tol
 
 @pytest.fixture(scope="module")
 def panda(client):
-    with running(["bringup", "--robot", "panda"]) as process:
+    with running(["bringup", "--robot", "panda", "--rtf", "2.0"]) as process:  # judged in sim time
         yield process
 
 

@@ -20,7 +20,7 @@ pytestmark = pytest.mark.slow
 
 
 def test_g1_right_arm_reaches_a_pose_while_the_robot_stands(client):
-    with running(["bringup", "--robot", "g1"]):
+    with running(["bringup", "--robot", "g1", "--rtf", "2.0"]):  # judged in sim time
         move_arm = ready_client(client, MoveArm, "/move_arm", timeout=90.0)
         odom = client.record(Odometry, "/odom", keep=10_000)
         client.wait_for(lambda: odom.count, 30.0, "/odom")

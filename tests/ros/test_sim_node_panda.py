@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import time
 
+import pytest
 from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 
@@ -15,8 +16,15 @@ from tests.ros.processes import running
 STARTUP_S = 60.0
 
 
-def test_panda_publishes_its_joints_and_the_boxes(client):
-    with running(["sim_node", "--ros-args", "-p", "robot:=panda", "-p", "real_time_factor:=0.0"]):
+class TestRunning:
+    """The tests that only watch a running Panda sim node share one."""
+
+    @pytest.fixture(scope="class")
+    def panda(self, client):
+        with running(["sim_node", "--ros-args", "-p", "robot:=panda", "-p", "real_time_factor:=0.0"]) as process:
+            yield process
+
+    def test_panda_publishes_its_joints_and_the_boxes(self, client, panda):
         objects = client.record(ObjectStates, "/objects")
         joints = client.record(JointState, "/joint_states")
         client.wait_for(lambda: objects.count > 2 and joints.count > 2, STARTUP_S, "/objects and /joint_states from the panda")
@@ -32,6 +40,22 @@ def test_panda_publishes_its_joints_and_the_boxes(client):
 
         client.wait_for(lambda: ("world", "box_1") in frames() and ("panda_link0", "panda_link1") in frames(),
                         30.0, "/tf with the boxes and the links")
+
+    def test_the_panda_scene_camera_sees_the_table_from_a_frame_on_tf_static(self, client, panda):
+        from rclpy.qos import DurabilityPolicy, QoSProfile
+        from sensor_msgs.msg import Image
+
+        import robot_models
+
+        camera = robot_models.cameras_of("panda")[0]
+        images = client.record(Image, f"/{camera.name}/image_raw", keep=5)
+        static = client.record(TFMessage, "/tf_static", qos=QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        image = client.wait_for(lambda: images.latest, STARTUP_S, f"an image on /{camera.name}/image_raw")
+        assert image.header.frame_id == camera.optical_frame and image.encoding == "rgb8"
+        client.wait_for(lambda: any((t.header.frame_id, t.child_frame_id) == ("world", camera.optical_frame)
+                                    for m in static.messages() for t in m.transforms), 30.0, "the camera's frame on /tf_static")
+        images.stop()
+        static.stop()
 
 
 def test_lifecycle_transitions_through_the_standard_services(client):
@@ -91,21 +115,3 @@ def test_lifecycle_transitions_through_the_standard_services(client):
         client.wait_for(lambda: clock.count > count + 5, STARTUP_S, "/clock after reactivation")
         assert sim_time(clock.latest) > stopped_at, "sim time keeps running forward"
         assert change(Transition.TRANSITION_ACTIVE_SHUTDOWN, leads_to="finalized") and state() == "finalized"
-
-
-def test_the_panda_scene_camera_sees_the_table_from_a_frame_on_tf_static(client):
-    from rclpy.qos import DurabilityPolicy, QoSProfile
-    from sensor_msgs.msg import Image
-
-    import robot_models
-
-    camera = robot_models.cameras_of("panda")[0]
-    with running(["sim_node", "--ros-args", "-p", "robot:=panda", "-p", "real_time_factor:=0.0"]):
-        images = client.record(Image, f"/{camera.name}/image_raw", keep=5)
-        static = client.record(TFMessage, "/tf_static", qos=QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL))
-        image = client.wait_for(lambda: images.latest, STARTUP_S, f"an image on /{camera.name}/image_raw")
-        assert image.header.frame_id == camera.optical_frame and image.encoding == "rgb8"
-        client.wait_for(lambda: any((t.header.frame_id, t.child_frame_id) == ("world", camera.optical_frame)
-                                    for m in static.messages() for t in m.transforms), 30.0, "the camera's frame on /tf_static")
-        images.stop()
-        static.stop()

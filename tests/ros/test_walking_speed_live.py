@@ -47,7 +47,7 @@ def pace(odom, t_from: float, t_to: float) -> float:
 
 
 def test_walking_speed_from_0_5_to_0_8_mid_walk(client):
-    with running(["bringup", "--robot", "g1", "--rtf", "1"]):
+    with running(["bringup", "--robot", "g1", "--rtf", "2.0"]):  # paces are measured in sim time
         walk = ready_client(client, Walk, "/walk", timeout=READY_S)
         set_walking_speed(client, 0.5)
         # A deep queue (33 s at 30 Hz): a reader starved for a moment on a loaded machine loses nothing
