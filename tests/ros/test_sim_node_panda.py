@@ -16,13 +16,15 @@ from tests.ros.processes import running
 STARTUP_S = 60.0
 
 
+@pytest.fixture(scope="class")
+def panda(client):
+    """A Panda sim node for the tests of one class (ended with it, before the lifecycle test starts its own)."""
+    with running(["sim_node", "--ros-args", "-p", "robot:=panda", "-p", "real_time_factor:=0.0"]) as process:
+        yield process
+
+
 class TestRunning:
     """The tests that only watch a running Panda sim node share one."""
-
-    @pytest.fixture(scope="class")
-    def panda(self, client):
-        with running(["sim_node", "--ros-args", "-p", "robot:=panda", "-p", "real_time_factor:=0.0"]) as process:
-            yield process
 
     def test_panda_publishes_its_joints_and_the_boxes(self, client, panda):
         objects = client.record(ObjectStates, "/objects")
