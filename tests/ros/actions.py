@@ -74,13 +74,21 @@ def wait_feedback(session: RosSession, sent: Sent, predicate: Callable[[Any], bo
     return session.wait_for(ready, timeout, what)
 
 
-def ready_client(session: RosSession, action_type: Any, name: str, timeout: float = 60.0) -> ActionClient:
-    """A plain rclpy ActionClient whose server has answered it (a cancel and a result request: both ways matched).
+def action_client(session: RosSession, action_type: Any, name: str) -> ActionClient:
+    """A plain rclpy ActionClient, not waited for: made early, its discovery goes on while a test does other things.
 
     It keeps 100 feedback messages, as the servers' writers do: an unpaced sim's feedback comes in bursts."""
+    return ActionClient(session.node, action_type, name, feedback_sub_qos_profile=QoSProfile(depth=100))
+
+
+def ready_client(session: RosSession, action_type: Any, name: str, timeout: float = 60.0,
+                 made: ActionClient | None = None) -> ActionClient:
+    """A plain rclpy ActionClient (``made``, or a new :func:`action_client`) whose server has answered it (a cancel
+    and a result request: both ways matched)."""
     deadline = time.monotonic() + timeout
     while True:
-        client = ActionClient(session.node, action_type, name, feedback_sub_qos_profile=QoSProfile(depth=100))
+        client = made if made is not None else action_client(session, action_type, name)
+        made = None
         remaining = deadline - time.monotonic()
         try:
             wait_until_answering(session, client, min(FRESH_CLIENT_S, remaining))
