@@ -23,19 +23,23 @@ import pytest  # noqa: E402
 
 TEST_WATCHDOG_S = 900.0  # [s] wall: a test (with its set-up and tear-down) that takes longer is a hung test
 
-# The files that keep a worker busy longest, longest first (worker seconds measured on 2 cores; the ten slowest
-# tests are printed at the end of every run). `make test` hands whole files to its two workers in collection
-# order (--dist loadfile --no-loadscope-reorder): a long file handed out last keeps one worker running alone
-# while the other has finished. Every other file follows in its usual order.
+# The files that keep a worker busy longest, longest first (45 s to 8 min each, measured one at a time on a loaded
+# 2-core machine; the ten slowest tests are printed at the end of every run). `make test` hands whole files to its two workers in
+# collection order (--dist loadfile --no-loadscope-reorder): a long file handed out last keeps one worker running
+# alone while the other has finished. Every other file follows in its usual order.
 LONGEST_FIRST = (
-    "tests/ros/test_readme_commands.py",
     "tests/scenarios/test_runs.py",
+    "tests/ros/test_readme_commands.py",
     "tests/scenarios/test_determinism.py",
     "tests/core/test_fetch.py",
     "tests/ros/test_g1_fetch.py",
+    "tests/scenarios/test_pictures.py",
     "tests/ros/test_locomotion_server.py",
     "tests/ros/test_reset_during_goals.py",
+    "tests/scenarios/test_cli.py",
     "tests/ros/test_g1_tables.py",
+    "tests/scenarios/test_sweep.py",
+    "tests/ros/test_namespaces.py",
 )
 
 
