@@ -40,6 +40,7 @@ LONGEST_FIRST = (
     "tests/ros/test_g1_tables.py",
     "tests/scenarios/test_sweep.py",
     "tests/ros/test_namespaces.py",
+    "tests/core/test_one_hand.py",
 )
 
 
