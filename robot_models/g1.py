@@ -28,6 +28,7 @@ import robot_models.g1_constants as names
 import robot_models.g1_tables as tables
 from robot_models.cameras import OPTICAL_IN_BODY_QUAT, CameraLayout, add_optical_camera, prepare_scene_for_cameras
 from robot_models.g1_gait import BIPED, WALKING
+from robot_models.g1_grasp import HANDS
 from robot_models.g1_layout import CAMERAS, SENSORS
 from robot_models.g1_palms import PALM_SITES
 from robot_models.physics import set_physics_options
@@ -352,4 +353,5 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
         cameras=CAMERAS,
         palms=dict(PALM_SITES) if scene == names.TABLES_SCENE else {},  # the pads the tables scene adds
         palm_hand_pose=dict(names.HAND_PALM_POSE) if scene == names.TABLES_SCENE else {},
+        hands=dict(HANDS) if scene == names.TABLES_SCENE else {},  # small objects for one hand are in that scene
     )

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 from robot_models.biped import BipedDescription
 from robot_models.cameras import CameraLayout
+from robot_models.hands import HandLayout
 from robot_models.sensors import SensorLayout
 from robot_models.validation import check_range
 
@@ -190,6 +191,7 @@ class RobotSpec:
             when the robot's hands cannot.
         palm_hand_pose: joint -> position [rad] the hands hold while their palms squeeze (fingers out
             of the palm faces' way); empty: the hands need none.
+        hands: arm -> its hand, for grasps of a small object with the fingers; empty: none grasps.
     """
 
     name: str
@@ -217,6 +219,7 @@ class RobotSpec:
     biped: BipedDescription | None = None
     palms: dict[str, str] = field(default_factory=dict)
     palm_hand_pose: dict[str, float] = field(default_factory=dict)
+    hands: dict[str, HandLayout] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.arm_scene.grippers and self.grasp is None:
@@ -230,6 +233,9 @@ class RobotSpec:
         if not set(self.palm_hand_pose) <= set(self.actuated_joints):
             raise ValueError(f"robot {self.name!r}: the palm hand pose moves joints that are not actuated: "
                              f"{sorted(set(self.palm_hand_pose) - set(self.actuated_joints))}")
+        if not set(self.hands) <= set(self.end_effector_sites):
+            raise ValueError(f"robot {self.name!r}: hands of arms without an end-effector site: "
+                             f"{sorted(set(self.hands) - set(self.end_effector_sites))}")
 
     @property
     def physics_timestep(self) -> float:

@@ -27,7 +27,7 @@ from sim_bridge.arm import PickPlaceGoal
 from sim_bridge.arm.pick_place import min_grip_force_n, place_problem
 from sim_bridge.battery import Battery
 from sim_bridge.errors import InvalidGoalError
-from sim_bridge.fetch import FetchGoal, FetchSkill, check_fetchable, check_place_on_a_table
+from sim_bridge.fetch import FetchGoal, check_fetchable, check_place_on_a_table, fetch_skill
 from sim_bridge.frames import check_frame, is_world, to_world
 from sim_bridge.skills import LEGS, NavigateGoal, NavigateSkill, Skill, SkillOutcome, Values, WalkGoal, WalkSkill
 from sim_bridge.skills.arm import MoveArmGoal, MoveArmSkill, PickPlaceSkill
@@ -250,7 +250,8 @@ def _validate_fetch(goal: PickPlace.Goal, robot: RobotSpec) -> str:
         raise InvalidGoalError(f"robot {robot.name!r} has no objects to pick in this scene (scene 'tables' has a box "
                                "on a table: bringup --scene tables)")
     if goal.end_effector:
-        raise InvalidGoalError(f"robot {robot.name!r} picks with both palms: leave end_effector empty "
+        raise InvalidGoalError(f"robot {robot.name!r} chooses its hands (both palms, or one hand for a small "
+                               "object): leave end_effector empty "
                                f"(got {goal.end_effector!r})")
     _finite_numbers(grasp_force=goal.grasp_force, approach_height=goal.approach_height, lift_height=goal.lift_height,
                     timeout=goal.timeout)
@@ -291,7 +292,8 @@ def _build_fetch(goal: PickPlace.Goal, context: SkillContext) -> Skill:
                      lift_height_m=goal.lift_height or FETCH_DEFAULTS.lift_height_m,
                      timeout_s=goal.timeout or FETCH_DEFAULTS.timeout_s)
     check_fetchable(context.robot, name, task.grip_force_n)  # an object picked by pick_pose is judged here
-    return _guarded(FetchSkill(context.robot, context.walker, context.arms, context.grid, task), context)
+    # A small object with one hand, the others with both palms.
+    return _guarded(fetch_skill(context.robot, context.walker, context.arms, context.grid, task), context)
 
 
 def _object_at(goal: PickPlace.Goal, sim: Simulation) -> str:

@@ -9,17 +9,18 @@ with the reason (:class:`~sim_bridge.errors.InvalidGoalError`, or
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
 
 from robot_models import RobotSpec
+from robot_models.hands import HandLayout
 from robot_models.spec import Obstacle
 from robot_models.validation import check_range, is_number
 from sim_bridge.errors import InvalidGoalError, UnknownNameError
 from sim_bridge.fetch.bimanual import tilt_of, yaw_of
-from sim_bridge.fetch.stance import Stance, StanceConfig, plan_stance, table_under, wrap
+from sim_bridge.fetch.stance import Stance, StanceConfig, beside, plan_stance, table_under, wrap
 from sim_bridge.navigation import OccupancyGrid
 
 REST_TOLERANCE_M = 0.02  # an object this close to resting height on a table top rests on it
@@ -28,6 +29,8 @@ GRIP_SAFETY = 2.0  # the palms must hold this many times the object's weight by 
 MIN_GRIP_WIDTH_M = 0.15  # the palms meet across the chest no closer than this
 MAX_GRIP_WIDTH_M = 0.40  # nor farther apart than this
 NAVIGATION_INFLATION_M = 0.40  # obstacles grow by this for the navigation (robot radius + margin)
+ONE_HAND_MAX_WIDTH_M = 0.07  # one hand closes its thumb and fingers around an object this wide at most
+ONE_HAND_MAX_MASS_KG = 0.5  # ... this heavy at most (the fingers' servos squeeze with a bounded torque)
 
 
 @dataclass(frozen=True)
@@ -96,33 +99,61 @@ class FetchPlan:
     pick_top_z: float
 
 
-def _box_of(model: mujoco.MjModel, body: int, name: str) -> np.ndarray:
+def _extent_of(model: mujoco.MjModel, body: int, name: str) -> tuple[np.ndarray, bool]:
+    """The half sizes of the object's one geom along its own x, y, z [m] (a cylinder's: radius, radius, half
+    height), and whether it is a box."""
     geoms = [g for g in range(model.ngeom) if int(model.geom_bodyid[g]) == body]
-    boxes = [g for g in geoms if int(model.geom_type[g]) == int(mujoco.mjtGeom.mjGEOM_BOX)]
-    if len(geoms) != 1 or not boxes:
-        raise InvalidGoalError(f"object {name!r} is not a box: both palms squeeze only a box between them")
-    return model.geom_size[boxes[0]].copy()
+    kind = int(model.geom_type[geoms[0]]) if len(geoms) == 1 else -1
+    if kind == int(mujoco.mjtGeom.mjGEOM_BOX):
+        return model.geom_size[geoms[0]].copy(), True
+    if kind == int(mujoco.mjtGeom.mjGEOM_CYLINDER):
+        radius, half_height = (float(v) for v in model.geom_size[geoms[0]][:2])
+        return np.array([radius, radius, half_height]), False
+    raise InvalidGoalError(f"object {name!r} is neither a box nor a cylinder: the palms squeeze a box, one hand "
+                           "holds a small box or cylinder")
+
+
+def for_one_hand(robot: RobotSpec, name: str) -> bool:
+    """Whether the robot takes object ``name`` with one hand: it has hands and the object is at most
+    ``ONE_HAND_MAX_WIDTH_M`` across both horizontal axes (False for an unknown name or shape)."""
+    if not robot.hands or name not in robot.objects:
+        return False
+    try:
+        half, _ = _extent_of(robot.model, robot.model.body(name).id, name)
+    except InvalidGoalError:
+        return False
+    return 2.0 * float(max(half[0], half[1])) <= ONE_HAND_MAX_WIDTH_M
 
 
 def check_fetchable(robot: RobotSpec, name: str, grip_force_n: float) -> tuple[int, np.ndarray]:
-    """Judge, from the model alone, whether the palms can hold object ``name`` with ``grip_force_n`` per palm.
+    """Judge, from the model alone, whether the palms (or, for a small object, one hand) can hold object ``name``
+    with ``grip_force_n`` per palm.
 
-    Returns its body id and its box's half sizes [m].
+    Returns its body id and its half sizes [m] (a cylinder's: radius, radius, half height).
 
     Raises:
         UnknownNameError: not an object of the scene (the message lists them).
-        InvalidGoalError: not a box, too narrow or wide for the palms, or the grip too weak for its weight.
+        InvalidGoalError: for the palms: not a box, too narrow or wide for them, or the grip too weak for its
+            weight; for one hand: heavier than ``ONE_HAND_MAX_MASS_KG``.
     """
     model = robot.model
     if name not in robot.objects:
         raise UnknownNameError(f"unknown object {name!r}; objects: {', '.join(robot.objects) or 'none'}")
     body = model.body(name).id
-    half = _box_of(model, body, name)
+    half, is_box = _extent_of(model, body, name)
+    mass = float(model.body_mass[body])
+    if for_one_hand(robot, name):
+        if mass > ONE_HAND_MAX_MASS_KG:
+            raise InvalidGoalError(f"object {name!r} ({mass:.2f} kg) is too heavy for one hand's fingers: at most "
+                                   f"{ONE_HAND_MAX_MASS_KG:.1f} kg")
+        return body, half
+    if not is_box:
+        raise InvalidGoalError(f"object {name!r} is not a box: both palms squeeze only a box between them")
     width = 2.0 * float(half[1])
     if not MIN_GRIP_WIDTH_M <= width <= MAX_GRIP_WIDTH_M:
+        hand = f", one hand at most {ONE_HAND_MAX_WIDTH_M:.2f} m" if robot.hands else " (the robot has no hand to grasp with)"
         raise InvalidGoalError(f"object {name!r} is {width:.3f} m wide across its grip axis (y): the palms "
-                               f"hold {MIN_GRIP_WIDTH_M:.2f}-{MAX_GRIP_WIDTH_M:.2f} m")
-    mass = float(model.body_mass[body])
+                               f"hold {MIN_GRIP_WIDTH_M:.2f}-{MAX_GRIP_WIDTH_M:.2f} m{hand}")
     mu = float(max(model.geom_friction[g][0] for g in range(model.ngeom) if int(model.geom_bodyid[g]) == body))
     gravity = float(np.linalg.norm(model.opt.gravity))
     if 2.0 * mu * grip_force_n < GRIP_SAFETY * mass * gravity:
@@ -140,9 +171,11 @@ def check_place_on_a_table(robot: RobotSpec, x: float, y: float) -> None:
 
 
 def plan_fetch(robot: RobotSpec, data: mujoco.MjData, goal: FetchGoal, grid: OccupancyGrid,
-               config: StanceConfig, in_hand: bool = False) -> FetchPlan:
-    """Judge the goal in the current state and plan its stances (``in_hand``: the palms hold the object
-    already; only the place is planned, and the plan's pick is the place's stance).
+               config: StanceConfig, in_hand: bool = False, hand: HandLayout | None = None) -> FetchPlan:
+    """Judge the goal in the current state and plan its stances (``in_hand``: the palms, or the hand, hold the
+    object already; only the place is planned, and the plan's pick is the place's stance). With ``hand`` the
+    object is taken with that hand (a small object: :func:`for_one_hand`), and the stances stand
+    ``hand_side_m`` to the side of the object and of the place, away from the hand; without it, with both palms.
 
     Raises:
         UnknownNameError: not an object of the scene (the message lists them).
@@ -150,6 +183,15 @@ def plan_fetch(robot: RobotSpec, data: mujoco.MjData, goal: FetchGoal, grid: Occ
             stance reaches it, or the place is not on a table top or out of reach (the message says why).
     """
     body, half = check_fetchable(robot, goal.object_name, goal.grip_force_n)
+    if (hand is not None) != for_one_hand(robot, goal.object_name):
+        width = 2.0 * float(half[1])
+        raise InvalidGoalError(f"object {goal.object_name!r} ({width:.3f} m wide across its grip axis (y)) is for "
+                               + ("both palms, not one hand" if hand is not None else "one hand, not both palms"))
+    # A hand's fingers hold a square object turned by any quarter turn; a cylinder from any side.
+    square = hand is not None and abs(float(half[0]) - float(half[1])) < 1e-6
+    symmetry = math.pi / 2 if square else math.pi
+    side = 0.0 if hand is None else math.copysign(config.hand_side_m, hand.palm_normal_in_tool[1])
+    config = config if hand is None else replace(config, reach_m=config.hand_reach_m)
     mass = float(robot.model.body_mass[body])
     tables = robot.obstacles
     position, quat = data.xpos[body], data.xquat[body]
@@ -160,14 +202,16 @@ def plan_fetch(robot: RobotSpec, data: mujoco.MjData, goal: FetchGoal, grid: Occ
         raise InvalidGoalError(f"object {goal.object_name!r} at ({x:.2f}, {y:.2f}, {z:.2f}) does not rest upright on a "
                                f"table top ({', '.join(t.name for t in tables) or 'no tables'})")
     place_table = table_under(tables, goal.place_x, goal.place_y)
-    place = None if place_table is None else plan_stance(place_table, goal.place_x, goal.place_y, goal.place_yaw, config)
+    place = None if place_table is None else beside(
+        plan_stance(place_table, goal.place_x, goal.place_y, goal.place_yaw, config, symmetry), side)
     if place_table is None or place is None or not _fits(place_table, goal.place_x, goal.place_y, place.yaw, half):
         raise InvalidGoalError(f"place ({goal.place_x:.2f}, {goal.place_y:.2f}) does not keep {goal.object_name!r} "
                                "whole on a table top; table tops: " + ", ".join(_bounds(t) for t in tables))
     if in_hand or table is None:
         pick, pick_top_z = place, place_table.height
     else:
-        pick, pick_top_z = plan_stance(table, x, y, yaw_of(quat), config), table.height
+        grip_yaw = yaw_of(quat) if hand is None or square else None
+        pick, pick_top_z = beside(plan_stance(table, x, y, grip_yaw, config, symmetry), side), table.height
     inflated = grid.inflated(NAVIGATION_INFLATION_M)
     for stance, what in ((pick, "the object"), (place, "the place")):
         if not inflated.is_free(stance.approach_x, stance.approach_y):

@@ -10,6 +10,7 @@ from sim_bridge.arm import ArmController
 from sim_bridge.controller import Slot
 from sim_bridge.core import Simulation
 from sim_bridge.fetch.goal import FetchGoal
+from sim_bridge.fetch.one_hand_fetch import fetch_skill
 from sim_bridge.fetch.skill import FetchSkill
 from sim_bridge.locomotion import WalkingController
 from sim_bridge.navigation import grid_from_obstacles
@@ -38,5 +39,6 @@ class FetchRig:
         return cls(robot, sim, walker, legs, arms)
 
     def skill(self, goal: FetchGoal) -> FetchSkill:
-        """A fetch of ``goal`` on this rig, planning around the robot's obstacles."""
-        return FetchSkill(self.robot, self.walker, self.arms, grid_from_obstacles(self.robot.obstacles), goal)
+        """A fetch of ``goal`` on this rig, planning around the robot's obstacles: with one hand for a small object,
+        else with both palms."""
+        return fetch_skill(self.robot, self.walker, self.arms, grid_from_obstacles(self.robot.obstacles), goal)

@@ -152,7 +152,7 @@ class FetchSkill:
         self._now = float(data.time)
         plan = self.plan
         assert plan is not None  # set by start
-        self._forces = grip_forces(model, data, self.palms, plan.body, solve=True)
+        self._measure(model, data, control_dt)
         status = self.walker.status()
         if status.fallen:
             self.stop_now(model, data)
@@ -353,6 +353,10 @@ class FetchSkill:
         self.stage = stage
         self._gripped.clear()
         self.events.append(f"{self._now:.2f} {stage.name} {phase}")
+
+    def _measure(self, model: mujoco.MjModel, data: mujoco.MjData, control_dt: float) -> None:
+        """The grip forces on the object now, at the start of each control step."""
+        self._forces = grip_forces(model, data, self.palms, self.plan.body if self.plan else 0, solve=True)
 
     def _fail(self, code: str, message: str) -> SkillOutcome:
         self._hold_arms()

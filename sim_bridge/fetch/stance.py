@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from robot_models.spec import Obstacle
 from sim_bridge.errors import InvalidGoalError
@@ -38,6 +38,10 @@ class StanceConfig:
         approach_edge_m: the approach point, where navigation ends, is this far from the table's edge
             [m]; it must be outside the navigation map's inflated obstacles.
         max_heading_offset_rad: largest angle between the stance heading and the edge's inward normal.
+        hand_reach_m: ``reach_m`` for a grasp with one hand [m] (the pelvis stands about 5 cm behind the feet, and
+            the hand reaches less far forward than the palms on a box's sides).
+        hand_side_m: for a grasp with one hand, the stance stands this far to the side of the object, away
+            from the hand (the object in front of that hand's shoulder) [m].
     """
 
     reach_m: float = 0.18
@@ -46,6 +50,8 @@ class StanceConfig:
     approach_back_m: float = 0.35
     approach_edge_m: float = 0.45
     max_heading_offset_rad: float = math.radians(30.0)
+    hand_reach_m: float = 0.14
+    hand_side_m: float = 0.10
 
 
 @dataclass(frozen=True)
@@ -82,7 +88,8 @@ def _to_local(table: Obstacle, x: float, y: float) -> tuple[float, float]:
     return c * dx + s * dy, -s * dx + c * dy
 
 
-def plan_stance(table: Obstacle, x: float, y: float, grip_yaw: float | None, config: StanceConfig) -> Stance:
+def plan_stance(table: Obstacle, x: float, y: float, grip_yaw: float | None, config: StanceConfig,
+                symmetry_rad: float = math.pi) -> Stance:
     """A stance to work at (x, y) on ``table``'s top, holding an object whose grip axis is at ``grip_yaw``.
 
     Args:
@@ -91,6 +98,8 @@ def plan_stance(table: Obstacle, x: float, y: float, grip_yaw: float | None, con
         grip_yaw: yaw of the object's x axis [rad]: the robot faces along it (or its opposite), so the
             palms meet the object's +-y faces; None: face the edge squarely.
         config: distances.
+        symmetry_rad: the grip is the same turned by this [rad] (a half turn for the palms on a box's sides;
+            a quarter turn for fingers on a square object).
 
     Raises:
         InvalidGoalError: no edge of the table lets the robot reach the point (the message says why).
@@ -112,7 +121,7 @@ def plan_stance(table: Obstacle, x: float, y: float, grip_yaw: float | None, con
             problems.append(f"{depth:.2f} m inside the edge facing yaw {math.degrees(wrap(normal + math.pi)):.0f} deg "
                             f"(at most {most:.2f} m is reachable)")
             continue
-        heading = normal if grip_yaw is None else grip_yaw + math.pi * round(wrap(normal - grip_yaw) / math.pi)
+        heading = normal if grip_yaw is None else grip_yaw + symmetry_rad * round(wrap(normal - grip_yaw) / symmetry_rad)
         offset = wrap(heading - normal)
         if abs(offset) > config.max_heading_offset_rad:
             problems.append(f"the grip needs a heading {math.degrees(offset):.0f} deg off facing the edge "
@@ -123,3 +132,10 @@ def plan_stance(table: Obstacle, x: float, y: float, grip_yaw: float | None, con
         back = (depth + config.approach_edge_m) / math.cos(offset)  # approach_edge_m from the edge, turned or not
         return Stance(stance_x, stance_y, wrap(heading), x - back * c, y - back * s, table.name)
     raise InvalidGoalError(f"no stance at {table.name} reaches ({x:.2f}, {y:.2f}): " + "; ".join(problems))
+
+
+def beside(stance: Stance, left_m: float) -> Stance:
+    """``stance`` and its approach point moved ``left_m`` [m] to the robot's left (negative: right)."""
+    dx, dy = -math.sin(stance.yaw) * left_m, math.cos(stance.yaw) * left_m
+    return replace(stance, x=stance.x + dx, y=stance.y + dy, approach_x=stance.approach_x + dx,
+                   approach_y=stance.approach_y + dy)

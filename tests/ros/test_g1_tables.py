@@ -49,7 +49,7 @@ def test_bringup_tables_navigates_around_a_table_and_its_servers_know_the_scene(
         answer = client.call(ComputeIK, "/arm/compute_ik", query, timeout=30.0)
         assert not answer.success and "is an object's" in answer.message, answer.message  # a frame /arm knows
         pick_place = ready_client(client, PickPlace, "/pick_place", timeout=60.0)
-        assert not send(client, pick_place, PickPlace.Goal(object_id="cube")).handle.accepted, "too small for two palms"
+        assert not send(client, pick_place, PickPlace.Goal(object_id="cube")).handle.accepted, "on the floor"
         off_the_tables = PickPlace.Goal(object_id="box")  # place (0, 0): on the floor
         assert not send(client, pick_place, off_the_tables).handle.accepted, "a place on no table top"
         assert process.alive(), process.output()

@@ -1,0 +1,120 @@
+"""The G1 fetches the small cube with one hand: walk, reach, close the fingers, lift, carry, place (issue 21, items 3
+and 4, in the core): the same goal as the box's, the fingers hold it by friction (no weld, no attachment)."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, replace
+
+import mujoco
+import numpy as np
+import pytest
+
+import robot_models
+from robot_models import g1_tables
+from sim_bridge.arm import PickPlaceStage
+from sim_bridge.controller import Slot
+from sim_bridge.errors import InvalidGoalError
+from sim_bridge.fetch import FetchGoal, FetchSkill, OneHandFetch, check_fetchable
+from sim_bridge.fetch.bimanual import tilt_of
+from sim_bridge.fetch.one_hand import PALM, finger_forces
+from sim_bridge.fetch.rig import FetchRig
+from sim_bridge.locomotion import LocomotionMode
+from sim_bridge.skills import SkillStatus
+
+PLACE = (1.02, -2.8)  # on the second table, 12 cm inside its edge facing the robot's side
+MAX_SIM_S = 150.0
+
+
+@dataclass
+class Trace:
+    stages: list[int] = field(default_factory=list)
+    carried_s: float = 0.0
+    min_fingers_while_carried: int = 99  # fingers (not the palm) pressing on it with 1 N at least
+    min_grip_while_carried: float = math.inf
+    fallen: bool = False
+
+
+@pytest.fixture(scope="module")
+def robot() -> robot_models.RobotSpec:
+    return robot_models.load(robot_models.G1, "tables")
+
+
+def test_the_g1_fetches_the_cube_to_the_second_table_with_one_hand(robot: robot_models.RobotSpec) -> None:
+    rig = FetchRig.of(robot)
+    sim = rig.sim
+    skill = rig.skill(FetchGoal("cube", *PLACE))
+    assert isinstance(skill, OneHandFetch) and skill.layout.arm == "right_arm"
+    body = sim.model.body("cube").id
+    wall = time.perf_counter()
+    run = rig.legs.start(1, skill, sim.model, sim.data)
+    trace = Trace()
+    while run.status is SkillStatus.RUNNING and sim.time < MAX_SIM_S:
+        sim.step(1)
+        trace.fallen = trace.fallen or rig.walker.status().fallen
+        if run.status is not SkillStatus.RUNNING:
+            break
+        if not trace.stages or trace.stages[-1] != skill.milestone:
+            trace.stages.append(skill.milestone)
+        if skill.stage is PickPlaceStage.TRANSPORT:
+            forces = finger_forces(sim.model, sim.data, skill.hand, body)
+            trace.carried_s += sim.control_timestep
+            trace.min_fingers_while_carried = min(trace.min_fingers_while_carried,
+                                                  sum(1 for f, n in forces.items() if f != PALM and n >= 1.0))
+            trace.min_grip_while_carried = min(trace.min_grip_while_carried, float(skill.feedback(sim.data)["grip_force"]))
+    wall = time.perf_counter() - wall
+    final_mode = rig.walker.status().mode
+    sim.set_controller(Slot.LOCOMOTION, None)  # the legs back to their servos: the model is shared
+    cube = sim.data.body("cube")
+    place = np.array([*PLACE, g1_tables.PLACE_TABLE.top_z + g1_tables.CUBE.half_size[2]])
+    error = float(np.linalg.norm(cube.xpos - place))
+    print(f"one-hand fetch of the cube: {run.outcome}, placed {error * 1e3:.1f} mm from the place, "
+          f"{sim.time:.1f} s sim, {wall:.0f} s wall; {skill.events}")
+    assert run.outcome is not None and run.status is SkillStatus.SUCCEEDED, (run.outcome, skill.events)
+    assert error <= 0.02, f"placed {error * 1e3:.1f} mm from the place"
+    assert math.degrees(tilt_of(cube.xquat)) < 3.0, "the cube rests level"
+    assert run.final_result is not None and run.final_result["placement_error"] == pytest.approx(error, abs=2e-3)
+    assert not trace.fallen and final_mode is LocomotionMode.STANDING
+    assert trace.stages == [int(stage) for stage in PickPlaceStage], skill.events
+    assert run.final_feedback is not None and run.final_feedback["stage_name"] == "RETREAT"
+    assert trace.carried_s > 5.0, "carried while walking to the second table"
+    assert trace.min_fingers_while_carried >= 2, "the thumb and a finger pressed on it all the way (friction only)"
+    assert trace.min_grip_while_carried > 5.0
+    forces = finger_forces(sim.model, sim.data, skill.hand, body)
+    assert max(forces[f] for f in skill.layout.fingers) == 0.0, "the fingers let go"
+    for item in (g1_tables.BOX, g1_tables.CAN):  # the other objects stay where they were
+        rest = np.asarray(g1_tables.object_rest_position(item))
+        assert np.linalg.norm(sim.body_pose(item.name).position - rest) < 0.01, item.name
+
+
+def test_small_objects_go_to_one_hand_the_box_to_both_palms(robot: robot_models.RobotSpec) -> None:
+    rig = FetchRig.of(robot)
+    assert isinstance(rig.skill(FetchGoal("can", *PLACE)), OneHandFetch)
+    box = rig.skill(FetchGoal("box", *PLACE))
+    assert isinstance(box, FetchSkill) and not isinstance(box, OneHandFetch)
+
+
+def test_what_one_hand_cannot_take_is_refused_with_the_reason(robot: robot_models.RobotSpec) -> None:
+    without_hands = replace(robot, hands={})
+    with pytest.raises(InvalidGoalError, match=r"wide across its grip axis.*no hand to grasp with"):
+        check_fetchable(without_hands, "cube", 25.0)
+    cube = robot.model.body("cube").id
+    mass = float(robot.model.body_mass[cube])
+    robot.model.body_mass[cube] = 0.8
+    try:
+        with pytest.raises(InvalidGoalError, match="too heavy for one hand"):
+            check_fetchable(robot, "cube", 25.0)
+    finally:
+        robot.model.body_mass[cube] = mass
+    rig = FetchRig.of(robot)
+    with pytest.raises(InvalidGoalError, match="does not keep 'cube' whole on a table top"):
+        rig.skill(FetchGoal("cube", 0.0, -2.8)).start(rig.sim.model, rig.sim.data)
+    adr = int(robot.model.joint("cube").qposadr[0])
+    rig.sim.data.qpos[adr:adr + 3] = [0.5, 1.5, g1_tables.CUBE.half_size[2]]  # on the floor
+    mujoco.mj_forward(rig.sim.model, rig.sim.data)
+    with pytest.raises(InvalidGoalError, match="does not rest upright on a table top"):
+        rig.skill(FetchGoal("cube", *PLACE)).start(rig.sim.model, rig.sim.data)
+    run = rig.legs.start(2, rig.skill(FetchGoal("cube", *PLACE)), rig.sim.model, rig.sim.data)
+    assert run.status is SkillStatus.ABORTED and run.outcome is not None and run.outcome.code == "INVALID_GOAL"
+    rig.sim.set_controller(Slot.LOCOMOTION, None)
