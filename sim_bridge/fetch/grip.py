@@ -101,6 +101,12 @@ class GripConfig:
     align_max_yaw_rate: float = 0.25
     align_timeout_s: float = 20.0
 
+    def navigation_settings(self, walking_speed_mps: float) -> dict[str, float]:
+        """The settings of the fetch's navigations (NavigateSkill's parameters)."""
+        return {"walking_speed": walking_speed_mps, "robot_radius": self.robot_radius_m,
+                "obstacle_detection_threshold": self.obstacle_margin_m, "xy_goal_tolerance": self.xy_tolerance_m,
+                "yaw_goal_tolerance": self.yaw_tolerance_rad}
+
     def __post_init__(self) -> None:
         for item in fields(self):
             if item.name not in ("place_press_m", "hand_pitch_rad"):

@@ -6,7 +6,7 @@ legs (through the locomotion skills :class:`~sim_bridge.skills.NavigateSkill` an
 controller, which must run in the simulation's ``Slot.ARM``). Its stages are PickPlace's:
 
 - APPROACH: navigate to the point behind the stance, raise the hands ready, walk forward onto the stance;
-- DESCEND: the palms to the box's sides, short of them;
+- DESCEND: the palms over the box's sides, wide of them, then down beside them, short of them;
 - GRASP: the palms close until each measures the grip force on the box (friction only, no attachment);
 - LIFT: up by the lift height, the grip force regulated;
 - TRANSPORT: the arms hold their joints; step back, navigate to the place's approach, walk onto its stance;
@@ -185,7 +185,7 @@ class FetchSkill:
                 self._hold_arms()
                 return walk_failure(outcome, self._phase)
         self._regulate(model, data)
-        if self._phase in ("reach", "squeeze", "lift", "over_place", "lower", "release"):
+        if self._phase in ("over_pick", "reach", "squeeze", "lift", "over_place", "lower", "release"):
             unreachable = self._unreachable()
             if unreachable is not None:
                 return unreachable
@@ -243,22 +243,27 @@ class FetchSkill:
         elif phase == "ready_pick":
             if self._arms_arrived(config.ready_tolerance_m) or elapsed > config.move_timeout_s:
                 self._hold_arms()
-                # Onto the stance closed-loop on the feet (forward, sideways and turning): a straight walk
-                # drifts sideways (7-10 cm over half a metre with the hands raised), and raised hands a few
-                # centimetres off the line push the object.
-                self._enter("align_pick", Stage.APPROACH)
+                self._enter("align_pick", Stage.APPROACH)  # onto the stance closed-loop on the feet (see .align)
         elif phase == "align_pick":
             if not self._align(plan.pick, data, elapsed):
                 return None
-            self._enter("reach", Stage.DESCEND)
+            # Over the grip, wide of the box and turned with it, then down: from the ready pose a palm cut across its top.
+            self._enter("over_pick", Stage.DESCEND)
             self._yaw = self._grip_yaw(float(yaw_of(data.xquat[plan.body])), data)
             # The palms take the box a little behind its centre: less reach, the box's weight ahead of the grip.
             back = min(config.grip_back_m, max(0.0, float(plan.half_size[0]) - config.palm_half_length_m))
             up = min(config.grip_up_m, max(0.0, float(plan.half_size[2]) - config.palm_half_height_m))
-            self._center = box - back * yaw_matrix(self._yaw)[:, 0] + np.array([0.0, 0.0, up])
-            self._center_goal = self._center.copy()
-            self._depth = [-config.clearance_m, -config.clearance_m]
+            self._center_goal = box - back * yaw_matrix(self._yaw)[:, 0] + np.array([0.0, 0.0, up])
+            self._center = self._center_goal.copy()
+            self._center[2] = plan.pick_top_z + float(plan.half_size[2]) + config.ready_rise_m
+            self._depth = [-config.ready_clearance_m] * 2
             self._set_grip_speed(config.reach_speed_mps)
+        elif phase == "over_pick":
+            if self._arms_arrived(config.ready_tolerance_m) or elapsed > config.move_timeout_s:
+                self._enter("reach", Stage.DESCEND)
+                self._center = self._center_goal.copy()
+                self._depth = [-config.clearance_m, -config.clearance_m]
+                self._set_grip_speed(config.reach_speed_mps)
         elif phase == "reach":
             self.stage_progress = min(1.0, min(self.arms.status(p.arm).progress for p in self.palms))
             if self._arms_arrived(config.reach_tolerance_m):
@@ -363,10 +368,7 @@ class FetchSkill:
         return SkillOutcome.aborted(code, f"{self.stage.name}: {message}")
 
     def _nav_settings(self) -> dict[str, float]:
-        config = self.config
-        return {"walking_speed": self.goal.walking_speed_mps, "robot_radius": config.robot_radius_m,
-                "obstacle_detection_threshold": config.obstacle_margin_m, "xy_goal_tolerance": config.xy_tolerance_m,
-                "yaw_goal_tolerance": config.yaw_tolerance_rad}
+        return self.config.navigation_settings(self.goal.walking_speed_mps)
 
     def _start_walk(self, walk: WalkSkill | NavigateSkill, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         self._walk = walk

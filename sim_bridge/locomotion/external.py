@@ -54,8 +54,7 @@ class ExternalContacts:
         out = self.generalized
         out[:] = 0.0
         force = self._force
-        for i in chosen:
-            i = int(i)
+        for i in chosen.tolist():
             mujoco.mj_contactForce(model, data, i, force)  # in the contact frame, on geom2 from geom1
             frame = data.contact.frame[i].reshape(3, 3)  # rows: normal (geom1 -> geom2), tangents
             linear, angular = frame.T @ force[:3], frame.T @ force[3:]
