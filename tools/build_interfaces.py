@@ -10,6 +10,11 @@ Two fixes are needed before the wheels' CMake files can build anything (see the 
 
 The installed libraries carry a RUNPATH to ``<venv>/lib``, so the libraries they link to are found
 without help; ``<venv>/setup.sh`` (tools/register_ament.py) adds the library path rosidl searches.
+
+Only what Python loads is built: rosidl's C code, the C type supports (the dispatch, Fast DDS's and the
+introspection one) and the Python bindings. The C++ generators are skipped (``SIM_SKIP_GENERATORS``;
+rclpy on rmw_fastrtps_cpp and ros2cli never load them). The three packages depend on none of each
+other, so they build at the same time, with Ninja (from requirements.txt).
 """
 
 from __future__ import annotations
@@ -17,14 +22,22 @@ from __future__ import annotations
 import glob
 import os
 import pathlib
+import shutil
 import subprocess
 import sys
 import sysconfig
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-PACKAGES = ("tf2_msgs", "simulation_interfaces", "sim_interfaces")  # build order
+PACKAGES = ("simulation_interfaces", "sim_interfaces", "tf2_msgs")  # independent of each other; largest first
+# rosidl generators for C++ users only: their headers, type support dispatch, Fast DDS and introspection code.
+SKIPPED_GENERATORS = (
+    "rosidl_generator_cpp", "rosidl_typesupport_cpp",
+    "rosidl_typesupport_fastrtps_cpp", "rosidl_typesupport_introspection_cpp",
+)
+GENERATOR = "Ninja"
 FARM_PYTHON_INCLUDE = "/opt/python/cp311-cp311/include/python3.11"
 FARM_NUMPY_INCLUDE = "/opt/python/cp311-cp311/lib/python3.11/site-packages/numpy/_core/include"
 
@@ -63,25 +76,32 @@ def build_environment(prefix: pathlib.Path) -> dict[str, str]:
     return env
 
 
-def build_package(name: str, prefix: pathlib.Path, env: dict[str, str]) -> None:
+def build_package(name: str, prefix: pathlib.Path, env: dict[str, str]) -> str:
+    """Configure, build and install one package; returns its name. Raises SystemExit with CMake's output."""
     source = ROOT / "interfaces" / name
     build = ROOT / "build" / name
+    cache = build / "CMakeCache.txt"
+    if cache.exists() and f"CMAKE_GENERATOR:INTERNAL={GENERATOR}\n" not in cache.read_text():
+        shutil.rmtree(build)  # configured by an earlier set-up with another generator: CMake refuses to switch
     build.mkdir(parents=True, exist_ok=True)
     configure = [
-        "cmake", "-S", str(source), "-B", str(build),
+        "cmake", "-G", GENERATOR, "-S", str(source), "-B", str(build),
         f"-DCMAKE_PREFIX_PATH={prefix}", f"-DCMAKE_INSTALL_PREFIX={prefix}",
         f"-DPython3_EXECUTABLE={prefix / 'bin' / 'python'}", "-DBUILD_TESTING=OFF",
-        "-DCMAKE_BUILD_TYPE=Release", "-Wno-dev",
+        "-DCMAKE_BUILD_TYPE=Release", "-Wno-dev", f"-DSIM_SKIP_GENERATORS={';'.join(SKIPPED_GENERATORS)}",
         # Every installed library and Python extension finds the generated libraries it links to in
         # <prefix>/lib by itself (RUNPATH). The type support libraries rosidl opens at run time are
         # searched on LD_LIBRARY_PATH only: <venv>/setup.sh exports it for tools of other set-ups.
         f"-DCMAKE_INSTALL_RPATH={prefix / 'lib'}",
     ]
-    for command in (configure, ["cmake", "--build", str(build), "-j", "2"], ["cmake", "--install", str(build)]):
+    # Each build may use every core: the packages' serial steps (configure, the generators) leave them idle.
+    jobs = str(os.cpu_count() or 2)
+    for command in (configure, ["cmake", "--build", str(build), "-j", jobs], ["cmake", "--install", str(build)]):
         result = subprocess.run(command, env=env, cwd=build, capture_output=True, text=True)
         if result.returncode != 0:
             sys.stderr.write(result.stdout[-4000:] + result.stderr[-4000:])
             raise SystemExit(f"building interface package {name} failed: {' '.join(command[:2])}")
+    return name
 
 
 def main() -> None:
@@ -90,9 +110,10 @@ def main() -> None:
         raise SystemExit("run this with the project's venv Python (.venv/bin/python)")
     fix_exported_cmake_paths(prefix)
     env = build_environment(prefix)
-    for name in PACKAGES:
-        build_package(name, prefix, env)
-        print(f"built and installed interface package {name} into {prefix}")
+    with ThreadPoolExecutor(max_workers=len(PACKAGES)) as pool:
+        futures = [pool.submit(build_package, name, prefix, env) for name in PACKAGES]
+        for future in futures:
+            print(f"built and installed interface package {future.result()} into {prefix}")
 
 
 if __name__ == "__main__":
