@@ -1,4 +1,5 @@
-"""PickPlace on the G1 through ROS (issue 21), from a plain rclpy client in another process: one goal walks the
+"""PickPlace on the G1 through ROS (issue 21), from a plain rclpy client in another process: one goal for the cube
+takes it in one hand (the fingers close until they press on it) to the second table; one goal walks the
 robot to the box, squeezes it between both palms, lifts it, carries it to the second table and puts it down
 within 2 cm of the place, with feedback at every stage, after the box was moved on the first table through
 /sim/set_entity_state; a MoveArm goal for an arm the fetch moves is refused with the reason; a cancel while
@@ -80,6 +81,31 @@ def test_one_pick_place_goal_fetches_the_moved_box_to_the_second_table(client):
         assert abs(p.z - rest_z) < 0.01 and _tilt(final.pose.orientation) < math.radians(5.0), "resting level on the table"
         v = final.twist.linear
         assert np.linalg.norm([v.x, v.y, v.z]) < 0.02, "let go of, at rest"
+        assert process.alive(), process.output()
+
+
+def test_one_pick_place_goal_fetches_the_cube_in_one_hand(client):
+    cube = g1_tables.CUBE
+    rest_z = g1_tables.TABLE_TOP_Z_M + cube.half_size[2]
+    goal = PickPlace.Goal(object_id=cube.name)
+    goal.place_pose.header.frame_id = "world"
+    goal.place_pose.pose.position.x, goal.place_pose.pose.position.y = PLACE
+    goal.place_pose.pose.position.z = g1_tables.TABLE_TOP_Z_M
+    with running(["bringup", "--robot", "g1", "--scene", "tables", "--rtf", "0"]) as process:
+        pick_place = ready_client(client, PickPlace, "/pick_place", timeout=90.0)
+        sent = send(client, pick_place, goal)
+        assert sent.handle.accepted
+        outcome = result(client, sent, timeout=FETCH_WAIT_S)
+        assert outcome.status == GoalStatus.STATUS_SUCCEEDED, (outcome.result.error_code, outcome.result.error_msg)
+        stages = [f.stage for f in sent.feedback]
+        assert stages == sorted(stages) and set(stages) == set(range(8)), f"every stage, in order: {sorted(set(stages))}"
+        carried = [f for f in sent.feedback if f.stage == PickPlace.Feedback.TRANSPORT]
+        assert carried and min(f.object_pose.pose.position.z for f in carried) > rest_z + 0.02, "held up while carried"
+        state = client.call(GetEntityState, "/sim/get_entity_state", GetEntityState.Request(entity=cube.name),
+                            timeout=30.0).state
+        p = state.pose.position
+        assert math.dist((p.x, p.y), PLACE) <= PLACEMENT_TOLERANCE_M, (p.x, p.y)
+        assert abs(p.z - rest_z) < 0.01 and _tilt(state.pose.orientation) < math.radians(5.0), "resting level on the table"
         assert process.alive(), process.output()
 
 
