@@ -1,11 +1,9 @@
-"""From the approach point onto a stance: steps forward, sideways and turning, on the walking controller.
+"""The last centimetres onto a stance: small steps forward, sideways and turning, on the walking controller.
 
-Navigation ends within a few centimetres of its goal and a straight walk drifts sideways (7-10 cm over
-the half metre to a table with the hands raised); the arms reach a table's object from a stance only
-within a few centimetres. The aligner commands velocities toward the stance, measured at the midpoint
-between the feet (the pelvis sways while stepping), closed-loop all the way: forward at most
-``align_walk_speed_mps``, slower over the last centimetres; it stops once near, lets the walker close
-its feet and stand, and looks again.
+Navigation ends within a few centimetres of its goal and a straight walk drifts sideways; the arms
+reach a table's object from a stance only within a few centimetres. The aligner commands small
+velocities toward the stance, measured at the midpoint between the feet (the pelvis sways while
+stepping), stops once near, lets the walker close its feet and stand, and looks again.
 """
 
 from __future__ import annotations
@@ -55,12 +53,9 @@ class StanceAligner:
             if aligned or out_of_time:
                 return True
             self.stepping = True
-        # Forward at walking pace only while on the line: off it, the sideways correction comes first.
-        forward_most = config.align_walk_speed_mps if abs(lateral) <= config.align_tolerance_m else config.align_max_speed_mps
-        vx, vy = (math.copysign(min(max(abs(error) * gain, config.align_min_speed_mps), most), error)
-                  if abs(error) > 0.5 * config.align_tolerance_m else 0.0
-                  for error, gain, most in ((ahead, config.align_gain, forward_most),
-                                            (lateral, config.align_lateral_gain, config.align_max_speed_mps)))
+        vx, vy = (math.copysign(min(max(abs(error) * config.align_gain, config.align_min_speed_mps),
+                                    config.align_max_speed_mps), error) if abs(error) > 0.5 * config.align_tolerance_m else 0.0
+                  for error in (ahead, lateral))
         wz = float(np.clip(turn * config.align_gain, -config.align_max_yaw_rate, config.align_max_yaw_rate))
         self.walker.set_velocity_command(vx, vy, wz)
         return False

@@ -48,9 +48,8 @@ class GripConfig:
         robot_radius_m, obstacle_margin_m: the navigation's inflation (their sum) [m].
         xy_tolerance_m, yaw_tolerance_rad: the navigation's arrival tolerances.
         max_place_tilt_rad: a placed box tilted more is not placed.
-        align_*: the steps onto a stance from where navigation ended: tolerances [m, rad], gains [1/s]
-            (forward, sideways), speeds [m/s] (``align_walk_speed_mps`` caps the forward speed while on the
-            stance's line, the others the last centimetres and the sideways steps), yaw rate [rad/s], time limit [s].
+        align_*: the side-step onto the stance's line before walking onto it: tolerances [m, rad], gain
+            [1/s], speeds [m/s], yaw rate [rad/s], time limit [s].
     """
 
     clearance_m: float = 0.04
@@ -61,7 +60,7 @@ class GripConfig:
     palm_half_height_m: float = 0.04
     ready_clearance_m: float = 0.07
     ready_forward_m: float = 0.28
-    ready_rise_m: float = 0.14
+    ready_rise_m: float = 0.05
     reach_speed_mps: float = 0.2
     carry_speed_mps: float = 0.08
     grip_period_s: float = 0.04
@@ -93,13 +92,11 @@ class GripConfig:
     align_tolerance_m: float = 0.03
     align_tolerance_rad: float = 0.03
     align_gain: float = 0.5
-    align_lateral_gain: float = 1.5
     align_stop_lead_m: float = 0.02
     align_min_speed_mps: float = 0.03
     align_max_speed_mps: float = 0.08
-    align_walk_speed_mps: float = 0.2
     align_max_yaw_rate: float = 0.25
-    align_timeout_s: float = 20.0
+    align_timeout_s: float = 12.0
 
     def navigation_settings(self, walking_speed_mps: float) -> dict[str, float]:
         """The settings of the fetch's navigations (NavigateSkill's parameters)."""

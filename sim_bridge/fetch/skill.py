@@ -6,7 +6,7 @@ legs (through the locomotion skills :class:`~sim_bridge.skills.NavigateSkill` an
 controller, which must run in the simulation's ``Slot.ARM``). Its stages are PickPlace's:
 
 - APPROACH: navigate to the point behind the stance, raise the hands ready, walk forward onto the stance;
-- DESCEND: the palms over the box's sides, wide of them, then down beside them, short of them;
+- DESCEND: the palms to the box's sides, short of them;
 - GRASP: the palms close until each measures the grip force on the box (friction only, no attachment);
 - LIFT: up by the lift height, the grip force regulated;
 - TRANSPORT: the arms hold their joints; step back, navigate to the place's approach, walk onto its stance;
@@ -185,7 +185,7 @@ class FetchSkill:
                 self._hold_arms()
                 return walk_failure(outcome, self._phase)
         self._regulate(model, data)
-        if self._phase in ("over_pick", "reach", "squeeze", "lift", "over_place", "lower", "release"):
+        if self._phase in ("reach", "squeeze", "lift", "over_place", "lower", "release"):
             unreachable = self._unreachable()
             if unreachable is not None:
                 return unreachable
@@ -228,11 +228,8 @@ class FetchSkill:
         if phase == "navigate_pick":
             # Face the stance's heading where the navigation ended, hands still low: walking on with the hands
             # raised and the heading off would sweep them across the table into the object.
-            # The spot is on the stance's line, level with the feet: the hands rise only once on the line.
             x, y, _ = self._feet(data)
-            c, s = math.cos(plan.pick.yaw), math.sin(plan.pick.yaw)
-            along = c * (x - plan.pick.x) + s * (y - plan.pick.y)
-            self._turn_spot = replace(plan.pick, x=plan.pick.x + along * c, y=plan.pick.y + along * s)
+            self._turn_spot = replace(plan.pick, x=x, y=y)
             self._enter("turn_pick", Stage.APPROACH)
         elif phase == "turn_pick":
             assert self._turn_spot is not None
@@ -243,27 +240,22 @@ class FetchSkill:
         elif phase == "ready_pick":
             if self._arms_arrived(config.ready_tolerance_m) or elapsed > config.move_timeout_s:
                 self._hold_arms()
-                self._enter("align_pick", Stage.APPROACH)  # onto the stance closed-loop on the feet (see .align)
+                self._enter("walk_pick", Stage.APPROACH)
+                self._walk_onto(plan.pick, model, data)
+        elif phase == "walk_pick":
+            self._enter("align_pick", Stage.APPROACH)
         elif phase == "align_pick":
             if not self._align(plan.pick, data, elapsed):
                 return None
-            # Over the grip, wide of the box and turned with it, then down: from the ready pose a palm cut across its top.
-            self._enter("over_pick", Stage.DESCEND)
+            self._enter("reach", Stage.DESCEND)
             self._yaw = self._grip_yaw(float(yaw_of(data.xquat[plan.body])), data)
             # The palms take the box a little behind its centre: less reach, the box's weight ahead of the grip.
             back = min(config.grip_back_m, max(0.0, float(plan.half_size[0]) - config.palm_half_length_m))
             up = min(config.grip_up_m, max(0.0, float(plan.half_size[2]) - config.palm_half_height_m))
-            self._center_goal = box - back * yaw_matrix(self._yaw)[:, 0] + np.array([0.0, 0.0, up])
-            self._center = self._center_goal.copy()
-            self._center[2] = plan.pick_top_z + float(plan.half_size[2]) + config.ready_rise_m
-            self._depth = [-config.ready_clearance_m] * 2
+            self._center = box - back * yaw_matrix(self._yaw)[:, 0] + np.array([0.0, 0.0, up])
+            self._center_goal = self._center.copy()
+            self._depth = [-config.clearance_m, -config.clearance_m]
             self._set_grip_speed(config.reach_speed_mps)
-        elif phase == "over_pick":
-            if self._arms_arrived(config.ready_tolerance_m) or elapsed > config.move_timeout_s:
-                self._enter("reach", Stage.DESCEND)
-                self._center = self._center_goal.copy()
-                self._depth = [-config.clearance_m, -config.clearance_m]
-                self._set_grip_speed(config.reach_speed_mps)
         elif phase == "reach":
             self.stage_progress = min(1.0, min(self.arms.status(p.arm).progress for p in self.palms))
             if self._arms_arrived(config.reach_tolerance_m):
@@ -297,7 +289,10 @@ class FetchSkill:
                                            NavigateGoal(place.approach_x, place.approach_y, place.yaw),
                                            self._nav_settings()), model, data)
         elif phase == "navigate_place":
-            self._enter("align_place", Stage.TRANSPORT)  # onto the stance closed-loop, as at the pick
+            self._enter("walk_place", Stage.TRANSPORT)
+            self._walk_onto(plan.place, model, data)
+        elif phase == "walk_place":
+            self._enter("align_place", Stage.TRANSPORT)
         elif phase == "align_place":
             if self._align(plan.place, data, elapsed):
                 self._enter("over_place", Stage.PLACE)
@@ -391,6 +386,11 @@ class FetchSkill:
         """The midpoint between the soles (world x, y [m]) and the pelvis heading [rad]."""
         x, y = self.walker.feet_midpoint(data)
         return x, y, self._base(data)[2]
+
+    def _walk_onto(self, stance: Stance, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        x, y, yaw = self._feet(data)
+        distance = (stance.x - x) * math.cos(yaw) + (stance.y - y) * math.sin(yaw)
+        self._walk_by(distance, model, data)
 
     def _align(self, stance: Stance, data: mujoco.MjData, elapsed: float) -> bool:
         """Step onto the stance (see :class:`StanceAligner`); True once standing on it (or out of time)."""

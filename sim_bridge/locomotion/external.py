@@ -1,11 +1,12 @@
-"""The scene's contact forces on a biped other than at its soles, as generalized forces for the whole-body QP.
+"""Movable objects' contact forces on a biped (what it holds), as generalized forces for the whole-body QP.
 
-A carried object presses on the hands, an arm may lean on a table: forces the QP's equations of motion
+A carried object presses on the hands: forces the QP's equations of motion
 (M qacc + h = tau + J_c^T f, with f the sole forces it chooses) do not contain, which the balance would
 meet only as an error to correct. Measured from the last physics step, each such contact's force on the
 robot enters as a known generalized force J^T f_ext (``mj_applyFT`` at the contact point), so the legs
 carry an object's weight and the squeeze that holds it as they carry the robot's own. Contacts between two
-parts of the robot cancel and are left out; those of the feet are the QP's own variables.
+parts of the robot cancel and are left out; those of the feet are the QP's own variables; those with the
+static scene (a table the body brushes) are left out too.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import numpy as np
 
 
 class ExternalContacts:
-    """The generalized force of the scene's contacts on a robot, except at its feet.
+    """The generalized force of movable objects' contacts on a robot, except at its feet.
 
     Args:
         model: the model.
@@ -33,12 +34,15 @@ class ExternalContacts:
         foot[list(foot_bodies)] = True
         self._robot = robot_body[model.geom_bodyid]  # per geom: part of the robot
         self._measured = self._robot & ~foot[model.geom_bodyid]  # per geom: a robot geom whose contacts are measured
+        # per geom: a movable object's (its body not fixed to the world), what the robot holds. The static scene (a
+        # table a thigh brushes) is left out: feeding its push in a physics step late was not tried.
+        self._movable = ~self._robot & (model.body_rootid[model.geom_bodyid] != 0)
         self.generalized = np.zeros(model.nv)
         self._force = np.zeros(6)
         self.count = 0
 
     def update(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray | None:
-        """J^T f summed over the contacts between a measured robot geom and the scene [generalized force];
+        """J^T f summed over the contacts between a measured robot geom and a movable object [generalized force];
         None when there are none (the common case: nothing is computed)."""
         self.count = 0
         n = data.ncon
@@ -46,8 +50,8 @@ class ExternalContacts:
             return None
         geoms = data.contact.geom[:n]
         first, second = geoms[:, 0], geoms[:, 1]
-        on_second = self._measured[second] & ~self._robot[first]  # the robot is geom2: the force is on it
-        on_first = self._measured[first] & ~self._robot[second]
+        on_second = self._measured[second] & self._movable[first]  # the robot is geom2: the force is on it
+        on_first = self._measured[first] & self._movable[second]
         chosen = np.flatnonzero(on_first | on_second)
         if len(chosen) == 0:
             return None
