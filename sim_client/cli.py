@@ -30,6 +30,7 @@ import robot_models
 from sim_ros.processes import BIN
 
 GOAL_WAIT_S = 3600.0
+CLOSE_PROMPTLY_S = 15.0  # [s of wall time] `sim watch` waits this long for its ROS node to close after Ctrl-C
 
 
 @contextmanager
@@ -46,6 +47,24 @@ def _interrupts() -> Iterator[threading.Event]:
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+
+
+@contextmanager
+def _closed_promptly(session: Any) -> Iterator[Any]:
+    """``session`` (a RosSession), closed on the way out within ``CLOSE_PROMPTLY_S``; a close that hangs longer
+    (a Fast DDS shutdown deadlock: README, Known limits) ends the process, so that Ctrl-C always quits."""
+    try:
+        yield session
+    finally:
+        closer = threading.Thread(target=session.close, name="close", daemon=True)
+        closer.start()
+        closer.join(CLOSE_PROMPTLY_S)
+        if closer.is_alive():
+            failed = sys.exc_info()[0] is not None
+            print(f"the ROS node did not close within {CLOSE_PROMPTLY_S:g} s; exiting without it", file=sys.stderr)
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(1 if failed else 0)
 
 
 def _feedback_line(feedback: Any, t: float) -> str:
@@ -176,7 +195,7 @@ def _watch_view(options: argparse.Namespace) -> int:
     from sim_client.scenario.running.progress import feedback_summary
     from sim_ros.session import RosSession
 
-    with RosSession("sim_watch", use_sim_time=False, namespace=options.namespace) as session:
+    with _closed_promptly(RosSession("sim_watch", use_sim_time=False, namespace=options.namespace)) as session:
         clock = session.record(Clock, "clock", keep=2)
         rtf = session.record(Float64, "sim/real_time_factor", keep=2)
         odom = session.record(Odometry, "odom", keep=2)
