@@ -111,6 +111,9 @@ class FoxgloveBridge(Node):
         for topic in self._watched:
             if topic in self._channels or not known.get(topic):
                 continue
+            publishers = self.get_publishers_info_by_topic(topic)
+            if not publishers:  # named by a subscriber only so far: the QoS (latched or not) is its publishers', later
+                continue
             type_name = known[topic][0]
             try:
                 msg_type = import_type(type_name)
@@ -122,7 +125,7 @@ class FoxgloveBridge(Node):
             schema = self._foxglove.Schema(name=type_name, encoding="ros2msg", data=definition.encode())
             channel = self._foxglove.Channel(topic, schema=schema, message_encoding="cdr")
             self._channels[topic] = channel
-            qos = matching_qos(self.get_publishers_info_by_topic(topic), depth=10)
+            qos = matching_qos(publishers, depth=10)
             latched = qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
             with self._lock:
                 self._sources[topic] = (msg_type, qos, latched)
