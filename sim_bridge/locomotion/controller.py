@@ -117,7 +117,7 @@ class WalkingController:
 
     @property
     def external_contacts(self) -> ExternalContacts:
-        """The scene's contact forces on the robot besides its soles (a held object), as the QP last took them in."""
+        """Movable objects' contact forces on the robot besides its soles (a held object), as the QP last took them in."""
         return self._wbc.external
 
     def set_velocity_command(self, vx: float, vy: float, wz: float) -> None:

@@ -3,8 +3,8 @@
 The QP in full: decision variables x = [f (3 per sole corner, world frame) [N], qacc (nv)
 [m/s^2, rad/s^2]]. Equalities: the floating-base rows of M qacc + h = tau + J_c^T f
 (h = qfrc_bias - qfrc_passive), and the servo-driven joints' rows with their position servo's own
-torque; h also holds the measured contact forces of the scene on the robot other than at its soles
-(:mod:`.external`: a held object). Inequalities: friction pyramids, bounded normal forces (a per-foot
+torque; h also holds the measured contact forces of movable objects on the robot other than at its
+soles (:mod:`.external`: a held object). Inequalities: friction pyramids, bounded normal forces (a per-foot
 load scale), joint torque limits, a knee-bend limit. Costs: CoM acceleration (through the total contact force), pelvis and
 torso orientation, stance soles fixed (soft), swing sole tracking, posture, a small regularisation.
 
@@ -117,7 +117,7 @@ class WholeBodyQP:
         self.torso = model.body(biped.torso_body).id
         self.joints = joints = JointLayout.of(model, biped)
         self.feet = FootLayout.of(model, biped)
-        # The scene's other contacts on the robot (a held object, a table leant on), measured: see .external.
+        # Movable objects' contacts on the robot (a held object), measured: see .external.
         self.external = ExternalContacts(model, self.pelvis, self.feet.bodies)
         self.ne, self.nm = len(joints.eliminated), len(joints.motor_dofs)
         self.nz = FORCE_BLOCK + self.nm  # z = [f, qacc_m]
