@@ -33,7 +33,16 @@ from robot_models.g1_layout import CAMERAS, SENSORS
 from robot_models.g1_palms import PALM_SITES
 from robot_models.physics import set_physics_options
 from robot_models.sensors import add_sensors
-from robot_models.spec import ArmScene, Obstacle, RobotSpec, UnknownSceneError, add_position_actuator, joint_limits_of, read_urdf
+from robot_models.spec import (
+    ArmScene,
+    Obstacle,
+    RobotSpec,
+    UnknownSceneError,
+    add_position_actuator,
+    compile_copy,
+    joint_limits_of,
+    read_urdf,
+)
 
 PHYSICS_TIMESTEP_S = 0.002
 IMPRATIO = 10.0  # frictional / normal contact impedance: soles that stick
@@ -314,11 +323,11 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
     objects: tuple[str, ...] = ()
     if scene == names.TABLES_SCENE:
         obstacles, objects = tables.add_tables_and_objects(spec)
-    model = spec.compile()
+    model = compile_copy(spec)  # the spec itself is never compiled (see RobotSpec.mjspec)
     qpos = _stand_qpos(model)
     ctrl = np.array([qpos[model.joint(j).qposadr[0]] for j in names.ALL_JOINTS])
     spec.add_key(name=names.STAND_KEYFRAME, qpos=qpos.tolist(), ctrl=ctrl.tolist())
-    model = spec.compile()
+    model = compile_copy(spec)
     return RobotSpec(
         name=names.ROBOT_NAME,
         mjspec=spec,

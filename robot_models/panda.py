@@ -30,6 +30,7 @@ from robot_models.spec import (
     RobotSpec,
     UnknownSceneError,
     add_position_actuator,
+    compile_copy,
     joint_limits_of,
     read_urdf,
 )
@@ -159,11 +160,11 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
     if scene not in names.SCENES:
         raise UnknownSceneError(f"unknown scene {scene!r} for {names.ROBOT_NAME}; scenes: {', '.join(names.SCENES)}")
     spec = build_spec()
-    model = spec.compile()
+    model = compile_copy(spec)  # the spec itself is never compiled (see RobotSpec.mjspec)
     qpos = _home_qpos(model)
     ctrl = [qpos[model.joint(j).qposadr[0]] for j in names.ALL_JOINTS]
     spec.add_key(name=names.HOME_KEYFRAME, qpos=qpos.tolist(), ctrl=ctrl)
-    model = spec.compile()
+    model = compile_copy(spec)
     return RobotSpec(
         name=names.ROBOT_NAME,
         mjspec=spec,

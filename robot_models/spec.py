@@ -163,7 +163,9 @@ class RobotSpec:
 
     Attributes:
         name: registry name (``"g1"``, ``"panda"``).
-        mjspec: the editable MuJoCo spec the model was compiled from.
+        mjspec: the editable MuJoCo spec the model was compiled from, itself never compiled: copy it
+            to edit or compile it (:func:`compile_copy`). A compiled spec keeps its meshes' processed
+            data (~185 MB for the G1), which a process holding the spec would carry for its whole life.
         model: the compiled model (physics timestep in ``model.opt.timestep`` [s]).
         joint_groups: named groups of actuated joint names, e.g. ``"left_leg"``.
         actuated_joints: every actuated joint, in actuator order.
@@ -273,6 +275,11 @@ def read_urdf(relative_path: str, keep_visuals: bool) -> str:
     if keep_visuals:
         text = text.replace("</robot>", '<mujoco><compiler discardvisual="false"/></mujoco></robot>')
     return text
+
+
+def compile_copy(spec: mujoco.MjSpec) -> mujoco.MjModel:
+    """Compile a copy of ``spec``, which stays uncompiled (small: it names its mesh files, holds none of their data)."""
+    return spec.copy().compile()
 
 
 def joint_limits_of(model: mujoco.MjModel, joints: tuple[str, ...]) -> dict[str, JointLimits]:
