@@ -1,36 +1,15 @@
-"""Conversions between the core's typed values and ROS messages (no logic beyond that)."""
+"""Conversions between the core's typed values and ROS messages (no logic beyond that; stamps: :mod:`sim_ros.stamps`)."""
 
 from __future__ import annotations
 
 import math
 
 import numpy as np
-from builtin_interfaces.msg import Duration, Time
 from geometry_msgs.msg import Pose as PoseMsg
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 
 from sim_bridge.navigation import OccupancyGrid
 from sim_bridge.state import Pose
-
-NANOSECONDS_PER_SECOND = 1_000_000_000
-
-
-
-def set_time(stamp: Time, seconds: float) -> None:
-    """Write a sim time [s] into an existing stamp in place (cheaper than a new message)."""
-    total = round(seconds * NANOSECONDS_PER_SECOND)
-    stamp.sec = total // NANOSECONDS_PER_SECOND
-    stamp.nanosec = total % NANOSECONDS_PER_SECOND
-
-
-def duration_msg(seconds: float) -> Duration:
-    total = round(max(0.0, seconds) * NANOSECONDS_PER_SECOND)
-    return Duration(sec=total // NANOSECONDS_PER_SECOND, nanosec=total % NANOSECONDS_PER_SECOND)
-
-
-def seconds_of(stamp: Time | Duration) -> float:
-    return stamp.sec + stamp.nanosec / NANOSECONDS_PER_SECOND
-
 
 
 def set_pose(msg: PoseMsg, position: np.ndarray, quat_wxyz: np.ndarray) -> None:

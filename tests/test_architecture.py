@@ -9,6 +9,8 @@ robots are defined (``robot_models``), chosen (scenario files, benchmarks) or te
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -131,3 +133,17 @@ def test_no_module_over_the_size_limit() -> None:
     files = [*MODULES.values(), *(p for d in SCRIPTS for p in (ROOT / d).rglob("*.py"))]
     long = [f"{p.relative_to(ROOT)}: {n} lines" for p in files if (n := len(p.read_text().splitlines())) > MAX_LINES]
     assert not long, f"modules over {MAX_LINES} lines (split them by concept):\n" + "\n".join(long)
+
+
+# Processes that hold no robot model: they import neither the physics nor the core (issue 24: a G1
+# bringup's memory; a device node that imported them carried ~30 MB more than a bare rclpy node).
+LIGHT_MODULES = ("nodes.devices.power", "nodes.devices.hand_sensors", "nodes.devices.head", "nodes.devices.camera",
+                 "nodes.launch.bringup")
+
+
+@pytest.mark.parametrize("module", LIGHT_MODULES)
+def test_light_processes_import_no_physics(module: str) -> None:
+    probe = f"import sys, {module}; print(' '.join(m for m in ('mujoco', 'mink', 'sim_bridge') if m in sys.modules))"
+    loaded = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True, cwd=ROOT,
+                            timeout=60).stdout.split()
+    assert not loaded, f"importing {module} loads {', '.join(loaded)}"

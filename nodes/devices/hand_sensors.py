@@ -30,8 +30,8 @@ from nodes.runtime.parameters import ParameterSpec, declare
 from nodes.runtime.serve import spin_server
 from sim_interfaces.msg import HandSensors
 from sim_interfaces.srv import CalibrateHandSensors
-from sim_ros.conversions import seconds_of
 from sim_ros.names import HAND_SENSORS_TOPIC, wrench_topic
+from sim_ros.stamps import seconds_of
 
 NODE_NAME = "hand_sensors"
 WATCH_PERIOD_S = 1.0  # wall seconds between checks whether anyone needs the wrist readings

@@ -27,8 +27,8 @@ from nodes.runtime.serve import spin_server
 from robot_models.sensors import BatteryLayout
 from sim_interfaces.msg import BatteryConfig
 from sim_interfaces.srv import GetBatteryLevel
-from sim_ros.conversions import seconds_of
 from sim_ros.names import BATTERY_CONFIG_TOPIC, BATTERY_TOPIC
+from sim_ros.stamps import seconds_of
 
 NODE_NAME = "power"
 MODEL_PARAMETERS = ("capacity_wh", "idle_power_w", "drive_efficiency", "battery_low_threshold")

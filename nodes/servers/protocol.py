@@ -35,7 +35,8 @@ from sim_bridge.skills.battery_guard import BatteryGuard
 from sim_bridge.skills.reset_pose import ResetPoseGoal, ResetPoseSkill
 from sim_bridge.state import Pose
 from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, ResetPose, Walk
-from sim_ros.conversions import duration_msg, set_pose, set_time, yaw_of
+from sim_ros.conversions import set_pose, yaw_of
+from sim_ros.stamps import duration_msg, set_time
 
 PICK_POSE_RADIUS_M = 0.03  # a pick_pose names the object whose centre is this close
 # The /arm parameters the arm skills read, with their defaults (a START without settings uses these).

@@ -35,8 +35,8 @@ from nodes.servers.protocol import BINDINGS, SkillBinding, result_codes
 from robot_models import RobotSpec
 from sim_bridge.errors import InvalidGoalError
 from sim_interfaces.msg import SkillCommand, SkillState
-from sim_ros.conversions import seconds_of
 from sim_ros.names import SKILL_COMMAND_TOPIC, SKILL_QOS, SKILL_STATE_TOPIC
+from sim_ros.stamps import seconds_of
 
 ACK_TIMEOUT_S = 10.0  # wall seconds for /sim to report a goal it was sent
 CANCEL_ACK_S = 2.0  # wall seconds a cancel request waits for /sim to report it has taken the cancel

@@ -43,8 +43,8 @@ from sim_bridge import Simulation
 from sim_bridge.camera import CameraIntrinsics, CameraRenderer, intrinsics
 from sim_interfaces.msg import CameraSettings
 from sim_ros.camera_settings import DEFAULT_SETTINGS, NOMINAL_EXPOSURE_MS, settings_problem
-from sim_ros.conversions import set_time
 from sim_ros.names import LATCHED, TF_STATIC_TOPIC, camera_info_topic, camera_settings_topic, camera_tilt_topic, image_topic
+from sim_ros.stamps import set_time
 
 IMAGE_QOS = QoSProfile(depth=4)  # a frame is ~0.2-0.9 MB: a slow reader gets the latest few, not seconds of them
 NANOSECONDS_PER_SECOND = 1_000_000_000

@@ -34,8 +34,8 @@ from sim_bridge.locomotion import PARAMETER_RANGES, GaitParameters, LocomotionMo
 from sim_bridge.navigation import grid_from_obstacles
 from sim_bridge.skills import LEGS, SkillHost
 from sim_interfaces.msg import LocomotionState
-from sim_ros.conversions import set_time
 from sim_ros.names import CMD_VEL_STAMPED_TOPIC, CMD_VEL_TOPIC
+from sim_ros.stamps import set_time
 
 LOCOMOTION_MODES = {
     LocomotionMode.STANDING: LocomotionState.STANDING,

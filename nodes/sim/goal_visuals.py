@@ -15,8 +15,8 @@ from rclpy.node import Node
 from visualization_msgs.msg import Marker, MarkerArray
 
 from sim_bridge.skills import GoalVisuals, SkillRun, SkillStatus, visuals_of
-from sim_ros.conversions import set_time
 from sim_ros.names import GOAL_MARKERS_TOPIC, LATCHED, PLAN_TOPIC
+from sim_ros.stamps import set_time
 
 FRAME = "world"
 PATH_WIDTH_M = 0.03

@@ -31,7 +31,7 @@ from sim_bridge import Simulation
 from sim_bridge.navigation import grid_from_obstacles
 from sim_bridge.urdf import robot_urdf
 from sim_interfaces.msg import ObjectStates
-from sim_ros.conversions import occupancy_grid_msg, set_pose, set_time
+from sim_ros.conversions import occupancy_grid_msg, set_pose
 from sim_ros.names import (
     CLOCK_TOPIC,
     JOINT_STATES_TOPIC,
@@ -44,6 +44,7 @@ from sim_ros.names import (
     TF_STATIC_TOPIC,
     TF_TOPIC,
 )
+from sim_ros.stamps import set_time
 
 STOP_STREAMS = ("clock", "joint_states")  # the streams that set the stepping stops
 # A reliable writer keeps this many samples for a slow reader: stepped as fast as possible, /sim publishes

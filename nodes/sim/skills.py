@@ -23,8 +23,8 @@ from sim_bridge.errors import InvalidGoalError
 from sim_bridge.skills import SkillHost, SkillRun, SkillStatus
 from sim_bridge.skills.host import refused_run
 from sim_interfaces.msg import SkillCommand, SkillState
-from sim_ros.conversions import set_time
 from sim_ros.names import SKILL_COMMAND_TOPIC, SKILL_QOS, SKILL_STATE_TOPIC
+from sim_ros.stamps import set_time
 
 HEARTBEAT_PERIOD_S = 0.2  # [s of wall time] the longest a running goal's state goes unpublished
 SEEN_COMMANDS = 256  # recent (resource, goal_seq) starts remembered, so a re-sent START is applied once

@@ -30,7 +30,8 @@ from sim_bridge.entities import (
     boxes_overlap,
 )
 from sim_bridge.frames import WORLD_FRAMES, is_world
-from sim_ros.conversions import set_pose, set_time
+from sim_ros.conversions import set_pose
+from sim_ros.stamps import set_time
 from simulation_interfaces.msg import (
     Bounds,
     EntityCategory,

@@ -8,7 +8,7 @@ from geometry_msgs.msg import TransformStamped
 from tf2_msgs.msg import TFMessage
 
 from sim_bridge import Simulation
-from sim_ros.conversions import set_time
+from sim_ros.stamps import set_time
 
 
 def _relative_transforms(data: mujoco.MjData, parents: np.ndarray, children: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

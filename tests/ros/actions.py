@@ -110,7 +110,7 @@ def sim_now(client: RosSession, entity: str, sim: str = "/sim") -> float:
     A client's latest message of a topic can lag the sim by seconds on a loaded machine (a deep queue loses
     nothing but is read late); a time read this way is at or after every request this client has had answered.
     """
-    from sim_ros.conversions import seconds_of
+    from sim_ros.stamps import seconds_of
     from simulation_interfaces.srv import GetEntityState
 
     response = client.call(GetEntityState, f"{sim}/get_entity_state", GetEntityState.Request(entity=entity), timeout=30.0)

@@ -15,7 +15,7 @@ from tf2_msgs.msg import TFMessage
 import robot_models
 from sim_interfaces.action import Walk
 from sim_interfaces.srv import CalibrateHandSensors, GetBatteryLevel, Reset, SetBatteryLevel
-from sim_ros.conversions import seconds_of
+from sim_ros.stamps import seconds_of
 from tests.ros.actions import ready_client, result, send, wait_feedback
 from tests.ros.processes import running
 

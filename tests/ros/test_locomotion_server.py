@@ -14,7 +14,8 @@ from nav_msgs.msg import Odometry
 import robot_models
 from sim_interfaces.action import NavigateToPose, Walk
 from sim_interfaces.srv import Push, Reset
-from sim_ros.conversions import seconds_of, yaw_of
+from sim_ros.conversions import yaw_of
+from sim_ros.stamps import seconds_of
 from tests.ros.actions import action_client, ready_client, result, send, sim_now as sim_at, wait_feedback
 from tests.ros.processes import running
 

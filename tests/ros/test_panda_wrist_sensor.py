@@ -9,7 +9,7 @@ from geometry_msgs.msg import WrenchStamped
 from robot_models import panda_constants
 from sim_interfaces.action import PickPlace
 from sim_interfaces.srv import CalibrateHandSensors, Reset
-from sim_ros.conversions import seconds_of
+from sim_ros.stamps import seconds_of
 from tests.ros.actions import ready_client, result, send
 from tests.ros.processes import running
 
