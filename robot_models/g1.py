@@ -306,12 +306,13 @@ def _arm_scene(model: mujoco.MjModel) -> ArmScene:
     return ArmScene(obstacle_bodies=bodies, collision_from_joint=3, make_visuals_collide=True)
 
 
-def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
+def load(scene: str = names.DEFAULT_SCENE, visuals: bool = True) -> RobotSpec:
     """Build and compile the G1 scene.
 
     Args:
         scene: ``"open"`` (empty floor), ``"course"`` (static obstacles to walk around) or ``"tables"``
             (two tables, objects on the first: :mod:`robot_models.g1_tables`).
+        visuals: keep the visual meshes (``RobotSpec.visuals``); without them the model is ~0.1 MB, not ~85 MB.
 
     Raises:
         UnknownSceneError: another scene name.
@@ -323,11 +324,11 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
     objects: tuple[str, ...] = ()
     if scene == names.TABLES_SCENE:
         obstacles, objects = tables.add_tables_and_objects(spec)
-    model = compile_copy(spec)  # the spec itself is never compiled (see RobotSpec.mjspec)
+    model = compile_copy(spec, visuals=False)  # kinematics for the keyframe; the spec itself is never compiled
     qpos = _stand_qpos(model)
     ctrl = np.array([qpos[model.joint(j).qposadr[0]] for j in names.ALL_JOINTS])
     spec.add_key(name=names.STAND_KEYFRAME, qpos=qpos.tolist(), ctrl=ctrl.tolist())
-    model = compile_copy(spec)
+    model = compile_copy(spec, visuals)
     return RobotSpec(
         name=names.ROBOT_NAME,
         mjspec=spec,
@@ -363,4 +364,5 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
         palms=dict(PALM_SITES) if scene == names.TABLES_SCENE else {},  # the pads the tables scene adds
         palm_hand_pose=dict(names.HAND_PALM_POSE) if scene == names.TABLES_SCENE else {},
         hands=dict(HANDS) if scene == names.TABLES_SCENE else {},  # small objects for one hand are in that scene
+        visuals=visuals,
     )

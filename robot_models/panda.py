@@ -151,8 +151,12 @@ def _arm_scene() -> ArmScene:
     )
 
 
-def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
+def load(scene: str = names.DEFAULT_SCENE, visuals: bool = True) -> RobotSpec:
     """Build and compile the Panda scene (one scene: ``"table"``).
+
+    Args:
+        scene: ``"table"``.
+        visuals: keep the visual-only geoms (``RobotSpec.visuals``); the Panda's model has none.
 
     Raises:
         UnknownSceneError: another scene name.
@@ -160,11 +164,11 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
     if scene not in names.SCENES:
         raise UnknownSceneError(f"unknown scene {scene!r} for {names.ROBOT_NAME}; scenes: {', '.join(names.SCENES)}")
     spec = build_spec()
-    model = compile_copy(spec)  # the spec itself is never compiled (see RobotSpec.mjspec)
+    model = compile_copy(spec, visuals=False)  # kinematics for the keyframe; the spec itself is never compiled
     qpos = _home_qpos(model)
     ctrl = [qpos[model.joint(j).qposadr[0]] for j in names.ALL_JOINTS]
     spec.add_key(name=names.HOME_KEYFRAME, qpos=qpos.tolist(), ctrl=ctrl)
-    model = compile_copy(spec)
+    model = compile_copy(spec, visuals)
     return RobotSpec(
         name=names.ROBOT_NAME,
         mjspec=spec,
@@ -186,4 +190,5 @@ def load(scene: str = names.DEFAULT_SCENE) -> RobotSpec:
         grasp=GRASP,
         sensors=SENSORS,
         cameras=CAMERAS,
+        visuals=visuals,
     )

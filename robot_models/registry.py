@@ -31,7 +31,7 @@ class RobotEntry:
 
     Attributes:
         name: registry name.
-        build: builds and compiles the robot in the named scene.
+        build: builds and compiles the robot in the named scene, with or without its visual meshes.
         default_scene: the scene built when none is named.
         sensors: its sensor layout (and battery pack).
         cameras: its cameras (names, frames, tilt ranges).
@@ -40,7 +40,7 @@ class RobotEntry:
     """
 
     name: str
-    build: Callable[[str], RobotSpec]
+    build: Callable[[str, bool], RobotSpec]
     default_scene: str
     sensors: SensorLayout
     cameras: tuple[CameraLayout, ...]
@@ -48,16 +48,16 @@ class RobotEntry:
     walks: bool
 
 
-def _build_g1(scene: str) -> RobotSpec:
+def _build_g1(scene: str, visuals: bool) -> RobotSpec:
     import robot_models.g1 as g1  # mujoco and the meshes only once a model is built
 
-    return g1.load(scene)
+    return g1.load(scene, visuals)
 
 
-def _build_panda(scene: str) -> RobotSpec:
+def _build_panda(scene: str, visuals: bool) -> RobotSpec:
     import robot_models.panda as panda  # mujoco and the meshes only once a model is built
 
-    return panda.load(scene)
+    return panda.load(scene, visuals)
 
 
 _ROBOTS: Final = {
@@ -84,15 +84,18 @@ def entry_of(name: str) -> RobotEntry:
         raise UnknownRobotError(f"unknown robot {name!r}; known robots: {', '.join(ROBOT_NAMES)}") from None
 
 
-def load(name: str, scene: str | None = None) -> RobotSpec:
+def load(name: str, scene: str | None = None, visuals: bool = True) -> RobotSpec:
     """Build the named robot in one of its scenes (``None`` or ``""`` = the robot's default scene).
+
+    ``visuals=False`` builds a light model (no visual-only geoms and meshes; the same bodies, joints,
+    masses, sites and keyframes) for processes that validate goals and resolve frames, not render.
 
     Raises:
         UnknownRobotError: the name is not registered; the message lists the names that are.
         UnknownSceneError: the robot has no such scene; the message lists its scenes.
     """
     entry = entry_of(name)
-    robot = entry.build(scene or entry.default_scene)
+    robot = entry.build(scene or entry.default_scene, visuals)
     if (robot.walking is not None and bool(robot.feet_sites)) != entry.walks:  # the registry's fact, checked once built
         raise RobotModelError(f"robot {name!r}: the registry says walks={entry.walks}, its spec says otherwise")
     return robot

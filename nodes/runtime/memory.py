@@ -1,7 +1,7 @@
 """What building a node's robot model leaves in the process, given back before the node serves.
 
-A G1 model is compiled three times in a server (twice by ``robot_models.load``, once more for the
-arms' IK), each time with its visual meshes: hundreds of MB of buffers that live a moment. glibc
+A G1 model with its visual meshes is compiled twice in ``/sim`` and in ``/arm`` (by
+``robot_models.load``, once more for the arms' IK): hundreds of MB of buffers that live a moment. glibc
 keeps freed heap memory for reuse, and buffers freed between long-lived objects fragment the heap;
 MuJoCo keeps every mesh it read in its asset cache. Both only grow a node's resident memory.
 """

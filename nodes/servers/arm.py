@@ -71,11 +71,13 @@ class ArmServer(Node):
 
     def __init__(self, robot: str, scene: str = "", **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
-        self.robot = robot_models.load(robot, scene or None)  # the scene's objects: goals may name them
+        # Goals are validated and frames resolved on the light model (the scene's objects: goals may name
+        # them); the IK runs on its own model, built from the robot with its visuals, which is let go.
+        self.robot = robot_models.load(robot, scene or None, visuals=False)
         declare(self, (ParameterSpec("robot", robot, "robot whose arms are served", read_only=True),
                        ParameterSpec("scene", scene, "scene of /sim (its objects); empty = the robot's default", read_only=True),
                        *parameters(self.robot)))
-        self.kinematics = ArmKinematics(self.robot)
+        self.kinematics = ArmKinematics(robot_models.load(robot, scene or None))
         self.arms = tuple(self.kinematics.arms)
         self._servers = skill_servers(self, self.robot, ACTIONS,
                                       self._settings, lambda: 1.0 / float(self.get_parameter("feedback_rate").value))
@@ -150,7 +152,7 @@ class ArmServer(Node):
 
 def help_page(program: str) -> str:
     """``arm_server --help``: what it serves and its parameters (the Panda's defaults)."""
-    robot = robot_models.load(robot_models.PANDA)
+    robot = robot_models.load(robot_models.PANDA, visuals=False)
     specs = (ParameterSpec("robot", "", "robot of the running /sim (empty = ask /sim)", read_only=True), SCENE_PARAMETER,
              *parameters(robot))
     return help_text(program, NODE_NAME, """\

@@ -51,9 +51,10 @@ class LocomotionServer(Node):
 
     def __init__(self, robot: str, scene: str = "", **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
-        spec = robot_models.load(robot, scene or None)  # the scene's objects: goals may name them as frames
+        # The scene's objects: goals may name them as frames. The light model: goals are validated, not simulated.
+        spec = robot_models.load(robot, scene or None, visuals=False)
         if spec.walking is None:
-            walkers = [name for name in robot_models.ROBOT_NAMES if robot_models.load(name).walking is not None]
+            walkers = [name for name in robot_models.ROBOT_NAMES if robot_models.walks(name)]
             raise StartupError(f"robot {robot!r} cannot walk; walking robots: {', '.join(walkers)}")
         declare(self, (ParameterSpec("robot", robot, "robot whose legs are served", read_only=True),
                        ParameterSpec("scene", scene, "scene of /sim (its objects); empty = the robot's default", read_only=True),
@@ -79,7 +80,7 @@ class LocomotionServer(Node):
 
 def help_page(program: str) -> str:
     """``locomotion_server --help``: what it serves and its parameters (ranges of the G1)."""
-    robot = robot_models.load(robot_models.G1)
+    robot = robot_models.load(robot_models.G1, visuals=False)
     specs = (ParameterSpec("robot", "", "robot of the running /sim (empty = ask /sim)", read_only=True), SCENE_PARAMETER,
              *parameters(robot))
     return help_text(program, NODE_NAME, """\

@@ -41,11 +41,15 @@ def build_collision_model(robot: RobotSpec, scene: ArmScene, infos: dict[str, Ar
     visits all of a mesh's vertices.
 
     Raises:
-        SimError: the recompiled model does not have the layout of the robot's model.
+        SimError: the robot was loaded without the visual meshes its IK needs, or the recompiled model
+            does not have the layout of the robot's model.
     """
     model = robot.model
     if not scene.make_visuals_collide:
         return model
+    if not robot.visuals:
+        raise SimError(f"robot {robot.name!r} was loaded without its visual meshes, which its arms' IK keeps away "
+                       "from: load it with visuals")
     colliding = set()
     for info in infos.values():
         arm_geoms, obstacle_geoms = _arm_and_obstacle_geoms(model, scene, info)

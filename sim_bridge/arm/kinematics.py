@@ -64,7 +64,8 @@ class ArmKinematics:
     """The IK model of a robot and an IK problem pair (tracking, offline) per arm.
 
     Building it compiles the robot's spec once more when its obstacles are visual meshes, for their
-    convex hulls (see :func:`~sim_bridge.arm.ik_model.build_collision_model`).
+    convex hulls (see :func:`~sim_bridge.arm.ik_model.build_collision_model`). It keeps its IK model,
+    not the robot (whose model it needs while it is built, with visuals when the IK avoids visual meshes).
 
     Args:
         robot: the robot scene.
@@ -72,7 +73,6 @@ class ArmKinematics:
     """
 
     def __init__(self, robot: RobotSpec, config: ArmControllerConfig | None = None) -> None:
-        self.robot = robot
         self.config = config or ArmControllerConfig()
         self.scene = robot.arm_scene
         self.arms = arm_infos(robot, self.scene)
@@ -83,7 +83,9 @@ class ArmKinematics:
         for arm, info in self.arms.items():
             self.tracking[arm] = IKProblem(ik_model, info, pairs[arm], self.posture_qpos, self.config, True)
             self.offline[arm] = IKProblem(ik_model, info, pairs[arm], self.posture_qpos, self.config, False)
-        self.model = robot.model
+        # The IK model has the robot's kinematics (only its limits and contacts differ): the robot's own
+        # model is not kept, so a process may build this from a robot it then lets go.
+        self.model = ik_model
         self._data = mujoco.MjData(self.model)
 
     def arm(self, name: str) -> ArmInfo:

@@ -13,6 +13,8 @@ import robot_models
 from robot_models import g1_constants as g1_names, panda_constants as panda_names
 from robot_models.validation import check_range, is_number
 from sim_bridge import Simulation
+from sim_bridge.arm import ArmKinematics
+from sim_bridge.errors import SimError
 
 HOLD_SECONDS = 10.0
 MAX_BASE_DRIFT_M = 0.02  # horizontal drift of the base over HOLD_SECONDS
@@ -183,3 +185,28 @@ def test_the_registry_s_facts_agree_with_every_built_scene(name):
         assert robot_models.cameras_of(name) == spec.cameras
     with pytest.raises(robot_models.UnknownSceneError, match="scenes: "):
         robot_models.check_scene(name, "no_such_scene")
+
+
+def test_a_light_model_has_the_robot_s_kinematics_and_masses_without_its_meshes():
+    full = robot_models.load("g1", "tables")
+    light = robot_models.load("g1", "tables", visuals=False)
+    assert full.visuals and not light.visuals
+    assert light.model.nmesh == 0 < full.model.nmesh
+    assert light.model.nbuffer < full.model.nbuffer / 100  # the meshes and their bounding volume trees
+    for array in ("body_pos", "body_quat", "body_mass", "body_inertia", "body_ipos", "body_iquat", "jnt_qposadr",
+                  "jnt_range", "site_pos", "key_qpos", "key_ctrl", "actuator_gainprm", "sensor_adr"):
+        assert np.array_equal(getattr(full.model, array), getattr(light.model, array)), array
+    for kind, count in ((mujoco.mjtObj.mjOBJ_BODY, "nbody"), (mujoco.mjtObj.mjOBJ_JOINT, "njnt"),
+                        (mujoco.mjtObj.mjOBJ_SITE, "nsite"), (mujoco.mjtObj.mjOBJ_CAMERA, "ncam")):
+        names = [mujoco.mj_id2name(full.model, kind, i) for i in range(getattr(full.model, count))]
+        assert names == [mujoco.mj_id2name(light.model, kind, i) for i in range(getattr(light.model, count))]
+    colliding = [full.model.geom(g).name for g in range(full.model.ngeom)
+                 if full.model.geom_contype[g] or full.model.geom_conaffinity[g]]
+    assert colliding == [light.model.geom(g).name for g in range(light.model.ngeom)]
+    assert full.mjspec.meshes, "the spec keeps naming the meshes; only the light model goes without them"
+
+
+def test_the_arms_ik_refuses_a_light_model_whose_visual_meshes_it_keeps_away_from():
+    with pytest.raises(SimError, match="without its visual meshes"):
+        ArmKinematics(robot_models.load("g1", visuals=False))
+    assert ArmKinematics(robot_models.load("panda", visuals=False)).arms  # the Panda's IK avoids collision geoms
