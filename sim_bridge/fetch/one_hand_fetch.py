@@ -155,7 +155,7 @@ class OneHandFetch(FetchSkill):
             if self._align(plan.pick, data, elapsed):
                 self._grasp_heading = self._base(data)[2]
                 self._rotation = grasp_rotation(self.hand, yaw_of(data.xquat[plan.body]), self._grasp_heading,
-                                                config.palm_tilt_rad)
+                                                config.palm_tilt(float(plan.half_size[2])))
                 self._enter("beside", Stage.DESCEND)
                 self._move(self._beside(center), config.reach_speed_mps)
         elif phase == "beside":
@@ -233,7 +233,7 @@ class OneHandFetch(FetchSkill):
         plan = self.plan
         assert plan is not None
         self._rotation = grasp_rotation(self.hand, yaw_of(data.xquat[plan.body]), plan.pick.yaw,
-                                        self.hand_config.palm_tilt_rad)
+                                        self.hand_config.palm_tilt(float(plan.half_size[2])))
         x, y, _ = self._feet(data)
         out = self.hand_config.approach_m * (self._rotation @ np.asarray(self.layout.palm_normal_in_tool, dtype=float))
         for back in READY_BACKS_M:  # the farthest back the arm reaches (the pelvis sways a few centimetres)

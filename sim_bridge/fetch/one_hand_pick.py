@@ -73,7 +73,11 @@ class OneHandConfig:
     """How the hand moves and closes.
 
     Attributes:
-        palm_tilt_rad: the palm faces the robot's midline tilted this much down [rad].
+        palm_tilt_rad: the palm faces the robot's midline tilted this much down [rad] (the fingers and the palm's
+            lower edge stay above the table top under a low object's centre).
+        tall_palm_tilt_rad, tall_half_height_m: ... and this much for an object whose centre rests this high above
+            the table or higher [rad, m]: there is room below, and a palm tilted more leans its upper edge into
+            the object's side as the fingers close, tipping it in the hand (a 12 cm can: 10 degrees, 19 carried).
         approach_m, approach_rise_m: the hand starts this far out along the palm normal and this far up from
             the grasp [m], and backs out there after the release.
         reach_speed_mps, carry_speed_mps: hand speeds reaching and holding [m/s].
@@ -92,6 +96,8 @@ class OneHandConfig:
     """
 
     palm_tilt_rad: float = 0.3
+    tall_palm_tilt_rad: float = 0.15
+    tall_half_height_m: float = 0.05
     approach_m: float = 0.06
     approach_rise_m: float = 0.04
     reach_speed_mps: float = 0.15
@@ -114,6 +120,10 @@ class OneHandConfig:
         for item in fields(self):
             if item.name not in ("palm_tilt_rad", "place_press_m"):
                 check_range(item.name, getattr(self, item.name), 0.0, low_open=True, error=InvalidGoalError)
+
+    def palm_tilt(self, half_height_m: float) -> float:
+        """The palm's tilt [rad] for an object whose centre rests ``half_height_m`` [m] above the table."""
+        return self.tall_palm_tilt_rad if half_height_m >= self.tall_half_height_m else self.palm_tilt_rad
 
 
 class OneHandPick:
