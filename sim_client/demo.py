@@ -2,11 +2,11 @@
 
 The G1 walks 2 m with feedback, walking_speed is changed mid-walk, a shove knocks it over and it
 walks again after a reset, it navigates around an obstacle (the course scene); the Panda moves its
-arm through poses and picks and places a box; the G1 fetches a box from one table to another (the
-tables scene). Consecutive scenarios of one robot and scene share their nodes (``bringup``, started
-once and reset between runs: four bring-ups for the default list); each runs lock-stepped on sim
-time as fast as the machine allows, and leaves a folder with report.json, an MCAP recording, an MP4
-video and plots.
+arm through poses and picks and places a box; the G1 fetches a box from one table to another with
+both palms, then the cube with one hand (the tables scene). Consecutive scenarios of one robot and
+scene share their nodes (``bringup``, started once and reset between runs: four bring-ups for the
+default list); each runs lock-stepped on sim time as fast as the machine allows, and leaves a folder
+with report.json, an MCAP recording, an MP4 video and plots.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import sys
 
 # Ordered by bring-up (G1 open floor, G1 course, Panda table): consecutive ones share their nodes.
 HEADLINE = ("walk_2m", "walking_speed_change", "walking_speed_0_5_to_0_8", "shove_fall_and_recover",
-            "navigate_around_obstacle", "move_arm_sequence", "pick_place_box", "fetch_box")
+            "navigate_around_obstacle", "move_arm_sequence", "pick_place_box", "fetch_box", "fetch_cube")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -53,7 +53,7 @@ from sim_bridge.fetch.one_hand import (
     holds,
     ready_tool_pose,
 )
-from sim_bridge.fetch.one_hand_pick import OneHandConfig
+from sim_bridge.fetch.one_hand_pick import HandMoves, OneHandConfig
 from sim_bridge.fetch.skill import FetchSkill
 from sim_bridge.fetch.stance import StanceConfig
 from sim_bridge.locomotion import WalkingController
@@ -72,7 +72,7 @@ HAND_PHASES = ("align_pick", "beside", "reach", "close", "lift", "align_place", 
 MOVES = ("beside", "reach", "lift", "over_place", "retreat")  # phases that end when the hand arrives
 
 
-class OneHandFetch(FetchSkill):
+class OneHandFetch(FetchSkill, HandMoves):
     """The fetch of a small object with one hand (see the module). A skill for the legs' host.
 
     Args:
@@ -155,24 +155,16 @@ class OneHandFetch(FetchSkill):
             if self._align(plan.pick, data, elapsed):
                 self._grasp_heading = self._base(data)[2]
                 self._rotation = grasp_rotation(self.hand, yaw_of(data.xquat[plan.body]), self._grasp_heading,
-                                                config.palm_tilt_rad)
+                                                config.palm_tilt(float(plan.half_size[2])))
                 self._enter("beside", Stage.DESCEND)
                 self._move(self._beside(center), config.reach_speed_mps)
-        elif phase == "beside":
-            self._enter("reach", Stage.DESCEND)
-            self._move(grasp_tool_pose(self.hand, center, self._rotation).position, config.reach_speed_mps)
-        elif phase == "reach":
-            self._enter("close", Stage.GRASP)
-            self.closer.close()
-        elif phase == "close":
-            touching = sum(1 for f in self.layout.fingers if self.fingers[f] >= config.hold_force_n)
-            self.stage_progress = min(1.0, touching / 2.0)
-            if self._gripped.update(self._now, self._held()):
-                self._enter("lift", Stage.LIFT)
-                self._move(self._tool + np.array([0.0, 0.0, self.goal.lift_height_m]), config.carry_speed_mps)
-            elif elapsed > config.grasp_timeout_s or (self.closer.done and elapsed > config.grasp_settle_s + 1.0):
-                return self._fail("GRASP_FAILED", "the fingers closed without holding ("
-                                  + ", ".join(f"{f} {n:.1f} N" for f, n in self.fingers.items()) + ")")
+        elif phase in ("beside", "reach", "close"):
+            if phase == "close":
+                touching = sum(1 for f in self.layout.fingers if self.fingers[f] >= config.hold_force_n)
+                self.stage_progress = min(1.0, touching / 2.0)
+            failure = self._grasp_step(phase, self._now, elapsed, center, self._held(), self.fingers, self.goal.lift_height_m)
+            if failure is not None:
+                return self._fail("GRASP_FAILED", failure)
         elif phase == "lift":
             self._hold_arms()
             self._enter("back_off", Stage.TRANSPORT)
@@ -233,7 +225,7 @@ class OneHandFetch(FetchSkill):
         plan = self.plan
         assert plan is not None
         self._rotation = grasp_rotation(self.hand, yaw_of(data.xquat[plan.body]), plan.pick.yaw,
-                                        self.hand_config.palm_tilt_rad)
+                                        self.hand_config.palm_tilt(float(plan.half_size[2])))
         x, y, _ = self._feet(data)
         out = self.hand_config.approach_m * (self._rotation @ np.asarray(self.layout.palm_normal_in_tool, dtype=float))
         for back in READY_BACKS_M:  # the farthest back the arm reaches (the pelvis sways a few centimetres)
@@ -247,18 +239,6 @@ class OneHandFetch(FetchSkill):
             # Its servo swings it (the arm controller leaves an idle arm's servos alone; it holds it there later).
             joint = self.robot.joint_groups[self.other_arm][0]
             data.ctrl[self.robot.model.actuator(joint).id] = OTHER_ARM_SWING_RAD
-
-    # ----- helpers ---------------------------------------------------------------------------
-    def _beside(self, center: np.ndarray) -> np.ndarray:
-        """The tool position out along the palm normal and up from the grasp of an object at ``center`` (world [m])."""
-        normal = self._rotation @ np.asarray(self.layout.palm_normal_in_tool, dtype=float)
-        grasp = grasp_tool_pose(self.hand, center, self._rotation).position
-        return grasp - self.hand_config.approach_m * normal + np.array([0.0, 0.0, self.hand_config.approach_rise_m])
-
-    def _move(self, tool_position: np.ndarray, speed_mps: float) -> None:
-        self._tool = np.asarray(tool_position, dtype=float).copy()
-        self.arms.set_target(self.layout.arm, grasp_tool_pose(self.hand, self._tool, self._rotation, np.zeros(3)),
-                             False, speed_mps, 1.0)
 
 
 def fetch_skill(robot: RobotSpec, walker: WalkingController, arms: ArmController, grid: OccupancyGrid,
