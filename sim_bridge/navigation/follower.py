@@ -7,6 +7,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+PUSHED_AWAY_M = 0.30  # turning at the goal, the robot follows the path again only once this far from the goal [m]
+ALIGN_GAIN_PER_S = 1.0  # turning at the goal, the robot steps back toward it at this gain [1/s] ...
+ALIGN_MAX_SPEED_MPS = 0.10  # ... and at most this fast along each axis [m/s]
+
 
 def wrap_angle(angle: float) -> float:
     """Angle wrapped to [-pi, pi) [rad]."""
@@ -23,6 +27,7 @@ class FollowerCommand:
         distance_remaining: along the path from the robot's projection to the goal [m].
         cross_track_error: distance from the robot to the path [m].
         phase: "follow", "align" (turning to the goal heading) or "arrived".
+        vy: leftward speed [m/s] in the robot's heading frame (only while aligning: stepping back onto the goal).
     """
 
     vx: float
@@ -30,10 +35,16 @@ class FollowerCommand:
     distance_remaining: float
     cross_track_error: float
     phase: str
+    vy: float = 0.0
 
 
 class PathFollower:
     """Pure pursuit toward a lookahead point, then a turn in place to the goal heading.
+
+    Once within ``xy_tolerance`` of the goal the robot turns there; swayed or pushed farther than twice
+    that while it turns (a held load moves the pelvis), it steps straight or sideways back toward the goal
+    as it turns, and follows the path again only when pushed ``PUSHED_AWAY_M`` away. (Pursuing a goal a few centimetres
+    behind the robot would turn it in circles around the goal.)
 
     Args:
         path: world waypoints [m], first = start.
@@ -80,15 +91,22 @@ class PathFollower:
         a, b = self.path[segment], self.path[segment + 1]
         remaining = float(np.linalg.norm(b - (a + t * (b - a)))) + float(self._remaining_after[segment])
         if to_goal <= self.xy_tolerance or self._aligning:
-            self._aligning = self._aligning or to_goal <= self.xy_tolerance
+            self._aligning = True
             error = wrap_angle(self.goal_yaw - yaw)
             if abs(error) <= self.yaw_tolerance and to_goal <= 2.0 * self.xy_tolerance:
                 return FollowerCommand(0.0, 0.0, to_goal, cross, "arrived")
-            if to_goal > 2.0 * self.xy_tolerance:  # pushed away while turning: walk back
+            if to_goal > max(2.0 * self.xy_tolerance, PUSHED_AWAY_M):  # pushed away while turning: walk back
                 self._aligning = False
             else:
                 wz = float(np.clip(1.5 * error, -max_yaw_rate, max_yaw_rate))
-                return FollowerCommand(0.0, wz, to_goal, cross, "align")
+                vx = vy = 0.0
+                if to_goal > 2.0 * self.xy_tolerance:  # swayed off while turning: step back toward the goal
+                    dx, dy = goal - p
+                    c, s = math.cos(yaw), math.sin(yaw)
+                    limit = ALIGN_MAX_SPEED_MPS
+                    vx = float(np.clip(ALIGN_GAIN_PER_S * (c * dx + s * dy), -limit, limit))
+                    vy = float(np.clip(ALIGN_GAIN_PER_S * (-s * dx + c * dy), -limit, limit))
+                return FollowerCommand(vx, wz, to_goal, cross, "align", vy)
         target = self._lookahead_point(segment, t)
         heading = math.atan2(target[1] - y, target[0] - x)
         error = wrap_angle(heading - yaw)

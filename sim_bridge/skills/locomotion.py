@@ -357,7 +357,7 @@ class NavigateSkill(_LocomotionSkill):
         if command.phase == "arrived":
             self._stop_with(SkillOutcome.succeeded(""))
             return None
-        self.walker.set_velocity_command(command.vx, 0.0, command.wz)
+        self.walker.set_velocity_command(command.vx, command.vy, command.wz)
         return None
 
     def _no_path(self, error: NoPathError) -> SkillOutcome:

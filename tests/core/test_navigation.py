@@ -46,3 +46,21 @@ def test_follower_turns_toward_the_path_then_aligns_and_arrives():
     aligning = follower.command(0.0, 1.97, math.pi / 2, speed=0.3, max_yaw_rate=0.6)
     assert aligning.phase == "align" and aligning.vx == 0.0 and aligning.wz > 0
     assert follower.command(0.0, 1.97, math.pi - 0.05, speed=0.3, max_yaw_rate=0.6).phase == "arrived"
+
+
+def test_follower_swayed_off_the_goal_while_turning_steps_back_instead_of_circling():
+    # A robot carrying a load sways its pelvis a few centimetres while it turns at the goal: it must keep
+    # turning and step back toward the goal, not pursue a goal point behind it (which turns it in circles).
+    follower = PathFollower([(0.0, 0.0), (2.0, 0.0)], goal_yaw=0.0, xy_tolerance=0.05, yaw_tolerance=0.05)
+    assert follower.command(1.97, 0.0, -math.pi / 2, speed=0.3, max_yaw_rate=0.6).phase == "align"
+    swayed = follower.command(1.90, 0.03, -1.0, speed=0.3, max_yaw_rate=0.6)  # 10.4 cm off, facing -57 deg
+    assert swayed.phase == "align" and swayed.wz > 0.5, "keeps turning toward the goal heading"
+    # The goal is 10 cm ahead-and-left in the world: in the robot's frame (facing -57 deg) it is ahead and to the left.
+    forward = math.cos(-1.0) * 0.10 + math.sin(-1.0) * -0.03
+    left = -math.sin(-1.0) * 0.10 + math.cos(-1.0) * -0.03
+    assert swayed.vx == pytest.approx(min(0.1, forward), abs=1e-9) and swayed.vy == pytest.approx(min(0.1, left), abs=1e-9)
+    near = follower.command(1.93, 0.0, -1.0, speed=0.3, max_yaw_rate=0.6)  # within twice the tolerance: turn only
+    assert near.phase == "align" and near.vx == near.vy == 0.0
+    assert follower.command(1.99, 0.0, 0.02, speed=0.3, max_yaw_rate=0.6).phase == "arrived"
+    pushed = follower.command(1.60, 0.0, -1.0, speed=0.3, max_yaw_rate=0.6)  # 40 cm away: follow the path again
+    assert pushed.phase == "follow"
