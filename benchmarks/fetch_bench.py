@@ -1,9 +1,11 @@
-"""Fetch benchmark: the G1 fetches the box across seeded layouts of the tables scene, in the core (no ROS).
+"""Fetch benchmark: the G1 fetches an object (the box, cube or can) over seeded layouts of the tables scene, in the core.
 
-Each layout puts the box at a random spot of the first table within the robot's reach from its near edge, with
-a random yaw, and asks for a random place on the second table; the cube and the can are moved to the first
-table's far side, out of the way. Prints the success rate, the placement error (median, max), falls, drops,
-the time per task (sim) and wall/sim.
+Each layout puts one object at a random spot of the first table within the robot's reach from its near edge, with
+a random yaw, and asks for a random place on the second table; the other objects are moved to the first table's
+far side, out of the way. The object is the box (both palms) or, in about one layout of five, the cube or the can
+(one hand), drawn from a seeded stream of its own, so the box layouts stay those of a run with boxes only. Prints
+the success rate (also per object), the placement error (median, max), falls, drops, the time per task (sim) and
+wall/sim.
 
 Run: ``PYTHONPATH=. .venv/bin/python benchmarks/fetch_bench.py [--layouts 50] [--seed 0] [--workers 2] [--ros 5]``;
 ``--ros N`` then runs the first N layouts through ROS (``fetch_ros.py``: one bring-up, a PickPlace goal each).
@@ -30,16 +32,23 @@ PICK_Y_M = (-0.40, 0.40)
 # The issue asks for +-45 deg; the stance planner turns the robot at most 30 deg from facing the table's edge
 # (StanceConfig.max_heading_offset_rad) and refuses a box turned farther, with the reason: the layouts stay within it.
 PICK_YAW_RAD = math.radians(30.0)
+# A square object is held the same turned by any quarter turn, a cylinder from any side: any yaw.
+SMALL_YAW_RAD = math.radians(45.0)
+SMALL_SHARE = 0.2  # about this share of the layouts fetch a small object (the cube or the can, in turn)
 PLACE_X_M = (1.00, 1.06)  # the place on the second table (near edge x = 0.9 m; the box is 0.2 m deep) [m]
 PLACE_Y_M = (-3.15, -2.45)
-OUT_OF_THE_WAY = {"cube": (1.42, -0.45), "can": (1.42, 0.45)}  # on the first table's far side [m]
+OUT_OF_THE_WAY = {"box": (1.38, 0.0), "cube": (1.42, -0.45), "can": (1.42, 0.45)}  # on the first table's far side [m]
 
 
 @dataclass(frozen=True)
 class Layout:
+    """One task: ``object_name`` from ``object_xy`` (turned ``object_yaw`` [rad]) on the first table to ``place_xy``
+    on the second (world [m])."""
+
     index: int
-    box_xy: tuple[float, float]
-    box_yaw: float
+    object_name: str
+    object_xy: tuple[float, float]
+    object_yaw: float
     place_xy: tuple[float, float]
 
 
@@ -55,10 +64,22 @@ class Outcome:
 
 
 def layouts(count: int, seed: int) -> list[Layout]:
-    rng = np.random.default_rng(seed)
-    return [Layout(i, (float(rng.uniform(*PICK_X_M)), float(rng.uniform(*PICK_Y_M))),
-                   float(rng.uniform(-PICK_YAW_RAD, PICK_YAW_RAD)),
-                   (float(rng.uniform(*PLACE_X_M)), float(rng.uniform(*PLACE_Y_M)))) for i in range(count)]
+    """``count`` seeded layouts: the box's from one stream, which layouts fetch a small object (and where) from another."""
+    rng, small_rng = np.random.default_rng(seed), np.random.default_rng([seed, 1])
+    cases = []
+    small = 0
+    for i in range(count):
+        xy = (float(rng.uniform(*PICK_X_M)), float(rng.uniform(*PICK_Y_M)))
+        yaw = float(rng.uniform(-PICK_YAW_RAD, PICK_YAW_RAD))
+        place = (float(rng.uniform(*PLACE_X_M)), float(rng.uniform(*PLACE_Y_M)))
+        name = "box"
+        if small_rng.random() < SMALL_SHARE:
+            name = ("cube", "can")[small % 2]
+            small += 1
+            xy = (float(small_rng.uniform(*PICK_X_M)), float(small_rng.uniform(*PICK_Y_M)))
+            yaw = float(small_rng.uniform(-SMALL_YAW_RAD, SMALL_YAW_RAD))
+        cases.append(Layout(i, name, xy, yaw, place))
+    return cases
 
 
 def _put(robot: Any, data: mujoco.MjData, name: str, x: float, y: float, z: float, yaw: float = 0.0) -> None:
@@ -79,11 +100,13 @@ def fetch(layout: Layout) -> Outcome:
     rig = FetchRig.of(robot)
     sim, walker, legs = rig.sim, rig.walker, rig.legs
     top = g1_tables.TABLE_TOP_Z_M
-    for item in (g1_tables.CUBE, g1_tables.CAN):
-        _put(robot, sim.data, item.name, *OUT_OF_THE_WAY[item.name], top + item.half_size[2] + 0.001)
-    _put(robot, sim.data, "box", *layout.box_xy, top + g1_tables.BOX.half_size[2] + 0.001, layout.box_yaw)
+    for item in g1_tables.OBJECTS:
+        if item.name == layout.object_name:
+            _put(robot, sim.data, item.name, *layout.object_xy, top + item.half_size[2] + 0.001, layout.object_yaw)
+        else:
+            _put(robot, sim.data, item.name, *OUT_OF_THE_WAY[item.name], top + item.half_size[2] + 0.001)
     mujoco.mj_forward(sim.model, sim.data)
-    skill = rig.skill(FetchGoal("box", *layout.place_xy))
+    skill = rig.skill(FetchGoal(layout.object_name, *layout.place_xy))
     wall0, sim0 = time.perf_counter(), sim.time
     run = legs.start(1, skill, sim.model, sim.data)
     fell = False
@@ -93,7 +116,7 @@ def fetch(layout: Layout) -> Outcome:
     wall = time.perf_counter() - wall0
     outcome = run.outcome
     code = outcome.code if outcome is not None else "TIMEOUT"
-    error = float(np.linalg.norm(sim.data.body("box").xpos[:2] - np.asarray(layout.place_xy)))
+    error = float(np.linalg.norm(sim.data.body(layout.object_name).xpos[:2] - np.asarray(layout.place_xy)))
     return Outcome(layout, code, outcome.message if outcome is not None else "still running", error, fell,
                    sim.time - sim0, wall)
 
@@ -135,8 +158,8 @@ def main() -> None:
 
 def _say(result: Outcome) -> None:
     layout = result.layout
-    print(f"  #{layout.index:2d} box ({layout.box_xy[0]:.2f}, {layout.box_xy[1]:+.2f}) yaw "
-          f"{math.degrees(layout.box_yaw):+5.1f} deg -> ({layout.place_xy[0]:.2f}, {layout.place_xy[1]:.2f}): "
+    print(f"  #{layout.index:2d} {layout.object_name:4s} ({layout.object_xy[0]:.2f}, {layout.object_xy[1]:+.2f}) yaw "
+          f"{math.degrees(layout.object_yaw):+5.1f} deg -> ({layout.place_xy[0]:.2f}, {layout.place_xy[1]:.2f}): "
           f"{result.code:16s} {result.placement_error * 1e3:6.1f} mm  sim {result.sim_s:5.1f} s  "
           f"wall/sim {result.wall_s / max(result.sim_s, 1e-9):.2f}  {'' if result.code == 'SUCCESS' else result.message}",
           flush=True)
@@ -146,6 +169,9 @@ def _summary(results: list[Outcome], wall_label: str, wall_s: float) -> None:
     ok = [r for r in results if r.code == "SUCCESS"]
     errors = [r.placement_error * 1e3 for r in ok]
     print(f"\nsuccess: {len(ok)}/{len(results)} = {100.0 * len(ok) / max(len(results), 1):.0f}%  (goal >= 95%)")
+    kinds = sorted({r.layout.object_name for r in results})
+    print("  by object: " + ", ".join(f"{kind} {sum(r.code == 'SUCCESS' for r in results if r.layout.object_name == kind)}/"
+                                     f"{sum(r.layout.object_name == kind for r in results)}" for kind in kinds))
     if errors:
         print(f"placement error of the successes [mm]: median {statistics.median(errors):.1f}, max {max(errors):.1f} "
               "(goal: median <= 10, max <= 20)")

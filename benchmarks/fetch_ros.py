@@ -41,8 +41,8 @@ def _put(session: RosSession, name: str, x: float, y: float, z: float, yaw: floa
         raise RuntimeError(f"/sim/set_entity_state {name}: {answer.error_message}")
 
 
-def _box_xy(session: RosSession) -> tuple[float, float]:
-    request = GetEntityState.Request(entity=g1_tables.BOX.name)
+def _xy(session: RosSession, name: str) -> tuple[float, float]:
+    request = GetEntityState.Request(entity=name)
     p = session.call(GetEntityState, "/sim/get_entity_state", request, timeout=SERVICE_WALL_S).state.pose.position
     return p.x, p.y
 
@@ -58,13 +58,15 @@ def fetch_through_ros(layouts: Iterable[Layout]) -> Iterator[Outcome]:
                                  ResetSimulation.Request(scope=ResetSimulation.Request.SCOPE_ALL), timeout=SERVICE_WALL_S)
             if reset.result.result != Result.RESULT_OK:
                 raise RuntimeError(f"/sim/reset_simulation: {reset.result.error_message}")
-            for item in (g1_tables.CUBE, g1_tables.CAN):
-                _put(session, item.name, *OUT_OF_THE_WAY[item.name], top + item.half_size[2] + 0.001)
-            _put(session, g1_tables.BOX.name, *layout.box_xy, top + g1_tables.BOX.half_size[2] + 0.001, layout.box_yaw)
+            for item in g1_tables.OBJECTS:
+                if item.name == layout.object_name:
+                    _put(session, item.name, *layout.object_xy, top + item.half_size[2] + 0.001, layout.object_yaw)
+                else:
+                    _put(session, item.name, *OUT_OF_THE_WAY[item.name], top + item.half_size[2] + 0.001)
             wall0, sim0 = time.perf_counter(), client.sim_now()
-            handle = client.send(PickPlaceClient.goal(g1_tables.BOX.name, (*layout.place_xy, top)))
+            handle = client.send(PickPlaceClient.goal(layout.object_name, (*layout.place_xy, top)))
             outcome = handle.wait(FETCH_WALL_S)
             wall, sim = time.perf_counter() - wall0, client.sim_now() - sim0
             code = "SUCCESS" if outcome.succeeded else (outcome.error_name or outcome.status)
-            error = math.dist(_box_xy(session), layout.place_xy)
+            error = math.dist(_xy(session, layout.object_name), layout.place_xy)
             yield Outcome(layout, code, outcome.error_msg, error, code == "FELL", sim, wall)

@@ -20,7 +20,7 @@ from robot_models.spec import Obstacle
 from robot_models.validation import check_range, is_number
 from sim_bridge.errors import InvalidGoalError, UnknownNameError
 from sim_bridge.fetch.bimanual import tilt_of, yaw_of
-from sim_bridge.fetch.stance import Stance, StanceConfig, beside, plan_stance, table_under, wrap
+from sim_bridge.fetch.stance import Feet, KeepOut, Stance, StanceConfig, plan_stance, table_under, wrap
 from sim_bridge.navigation import OccupancyGrid
 
 REST_TOLERANCE_M = 0.02  # an object this close to resting height on a table top rests on it
@@ -202,8 +202,9 @@ def plan_fetch(robot: RobotSpec, data: mujoco.MjData, goal: FetchGoal, grid: Occ
         raise InvalidGoalError(f"object {goal.object_name!r} at ({x:.2f}, {y:.2f}, {z:.2f}) does not rest upright on a "
                                f"table top ({', '.join(t.name for t in tables) or 'no tables'})")
     place_table = table_under(tables, goal.place_x, goal.place_y)
-    place = None if place_table is None else beside(
-        plan_stance(place_table, goal.place_x, goal.place_y, goal.place_yaw, config, symmetry), side)
+    feet, legs = feet_of(robot, config), table_legs(robot)
+    place = None if place_table is None else plan_stance(place_table, goal.place_x, goal.place_y, goal.place_yaw,
+                                                         config, symmetry, side, feet, legs)
     if place_table is None or place is None or not _fits(place_table, goal.place_x, goal.place_y, place.yaw, half):
         raise InvalidGoalError(f"place ({goal.place_x:.2f}, {goal.place_y:.2f}) does not keep {goal.object_name!r} "
                                "whole on a table top; table tops: " + ", ".join(_bounds(t) for t in tables))
@@ -211,7 +212,7 @@ def plan_fetch(robot: RobotSpec, data: mujoco.MjData, goal: FetchGoal, grid: Occ
         pick, pick_top_z = place, place_table.height
     else:
         grip_yaw = yaw_of(quat) if hand is None or square else None
-        pick, pick_top_z = beside(plan_stance(table, x, y, grip_yaw, config, symmetry), side), table.height
+        pick, pick_top_z = plan_stance(table, x, y, grip_yaw, config, symmetry, side, feet, legs), table.height
     inflated = grid.inflated(NAVIGATION_INFLATION_M)
     for stance, what in ((pick, "the object"), (place, "the place")):
         if not inflated.is_free(stance.approach_x, stance.approach_y):
@@ -219,6 +220,27 @@ def plan_fetch(robot: RobotSpec, data: mujoco.MjData, goal: FetchGoal, grid: Occ
                                    "blocked by an obstacle")
     center = np.array([goal.place_x, goal.place_y, place_table.height + float(half[2])])
     return FetchPlan(body, half, mass, pick, place, center, place_table.height, pick_top_z)
+
+
+def feet_of(robot: RobotSpec, config: StanceConfig) -> Feet | None:
+    """The robot's feet seen from above (None for a robot that does not walk)."""
+    biped = robot.biped
+    if biped is None:
+        return None
+    return Feet(biped.half_step_width_m, float(biped.sole_half_size[0]), float(biped.sole_half_size[1]) + config.leg_margin_m)
+
+
+def table_legs(robot: RobotSpec) -> tuple[KeepOut, ...]:
+    """The footprints of the obstacles' geoms besides their main one (a table's legs), from the model."""
+    model = robot.model
+    discs = []
+    for obstacle in robot.obstacles:
+        for name in obstacle.geom_names[1:]:
+            geom = model.geom(name)
+            if int(model.geom_bodyid[geom.id]) != 0:  # only static geoms of the world body have world poses here
+                continue
+            discs.append(KeepOut(float(geom.pos[0]), float(geom.pos[1]), float(math.hypot(geom.size[0], geom.size[1]))))
+    return tuple(discs)
 
 
 def _bounds(table: Obstacle) -> str:

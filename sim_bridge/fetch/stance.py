@@ -6,6 +6,12 @@ pelvis ``reach`` behind that point along the edge's inward normal, and its headi
 lines the object's grip axis up with the robot's left-right axis. It is refused when the point lies
 too deep inside the top (the body would meet the table), or when the grip heading is too far from
 facing the edge.
+
+Where the feet would stand against a table's leg (an object near the end of a table, the robot turned
+toward that end), the stance moves sideways, along the robot's left-right axis and away from the nearest
+leg, in steps, until both soles and the line between them keep clear of every leg; the arms then reach
+to that side. No clear stance
+within ``max_side_shift_m``: refused.
 """
 
 from __future__ import annotations
@@ -42,7 +48,11 @@ class StanceConfig:
             the hand reaches less far forward than the palms on a box's sides).
         hand_side_m: for a grasp with one hand, the stance stands this far to the side of the object, away
             from the hand (the object in front of that hand's shoulder) [m].
+        max_side_shift_m: farthest a stance moves sideways to keep the feet clear of a table's legs [m].
+        side_shift_step_m: the sideways steps tried up to that [m].
+        leg_margin_m: the robot's shins and thighs reach this far beyond its soles' sides [m].
     """
+
 
     reach_m: float = 0.18
     max_reach_m: float = 0.22
@@ -52,6 +62,34 @@ class StanceConfig:
     max_heading_offset_rad: float = math.radians(30.0)
     hand_reach_m: float = 0.14
     hand_side_m: float = 0.10
+    max_side_shift_m: float = 0.06
+    side_shift_step_m: float = 0.02
+    leg_margin_m: float = 0.005
+
+
+@dataclass(frozen=True)
+class Feet:
+    """Where a standing robot's legs are, seen from above, for keeping them clear of a table's legs.
+
+    Attributes:
+        half_spacing_m: from the stance point (midpoint between the feet) to each sole's centre, sideways [m].
+        half_length_m: half the sole's length, along the heading [m].
+        radius_m: the legs' half width above the sole centre line: the sole's half width plus the margin the
+            shins and thighs need [m].
+    """
+
+    half_spacing_m: float
+    half_length_m: float
+    radius_m: float
+
+
+@dataclass(frozen=True)
+class KeepOut:
+    """A disc of the floor the feet keep out of (a table leg's footprint), world frame [m]."""
+
+    x: float
+    y: float
+    radius: float
 
 
 @dataclass(frozen=True)
@@ -89,7 +127,8 @@ def _to_local(table: Obstacle, x: float, y: float) -> tuple[float, float]:
 
 
 def plan_stance(table: Obstacle, x: float, y: float, grip_yaw: float | None, config: StanceConfig,
-                symmetry_rad: float = math.pi) -> Stance:
+                symmetry_rad: float = math.pi, side_m: float = 0.0, feet: Feet | None = None,
+                keep_out: Sequence[KeepOut] = ()) -> Stance:
     """A stance to work at (x, y) on ``table``'s top, holding an object whose grip axis is at ``grip_yaw``.
 
     Args:
@@ -100,6 +139,9 @@ def plan_stance(table: Obstacle, x: float, y: float, grip_yaw: float | None, con
         config: distances.
         symmetry_rad: the grip is the same turned by this [rad] (a half turn for the palms on a box's sides;
             a quarter turn for fingers on a square object).
+        side_m: the stance stands this far to the robot's left of the object [m] (negative: right).
+        feet: the robot's feet, kept clear of ``keep_out`` (None: not checked).
+        keep_out: discs of the floor the feet keep clear of (the table legs).
 
     Raises:
         InvalidGoalError: no edge of the table lets the robot reach the point (the message says why).
@@ -130,8 +172,48 @@ def plan_stance(table: Obstacle, x: float, y: float, grip_yaw: float | None, con
         c, s = math.cos(heading), math.sin(heading)
         stance_x, stance_y = x - reach * c, y - reach * s
         back = (depth + config.approach_edge_m) / math.cos(offset)  # approach_edge_m from the edge, turned or not
-        return Stance(stance_x, stance_y, wrap(heading), x - back * c, y - back * s, table.name)
+        facing = Stance(stance_x, stance_y, wrap(heading), x - back * c, y - back * s, table.name)
+        return _clear_of_legs(facing, side_m, config, feet, keep_out)
     raise InvalidGoalError(f"no stance at {table.name} reaches ({x:.2f}, {y:.2f}): " + "; ".join(problems))
+
+
+def _clear_of_legs(stance: Stance, side_m: float, config: StanceConfig, feet: Feet | None,
+                   keep_out: Sequence[KeepOut]) -> Stance:
+    """``stance`` moved ``side_m`` to the left, or, where the legs would stand against a table leg, moved farther
+    sideways, away from the nearest table leg, in steps until they are clear or ``max_side_shift_m`` is reached."""
+    first = beside(stance, side_m)
+    if feet is None or not keep_out or legs_clear(first, feet, keep_out):
+        return first
+    left_x, left_y = -math.sin(first.yaw), math.cos(first.yaw)
+    nearest = min(keep_out, key=lambda disc: math.hypot(disc.x - first.x, disc.y - first.y))
+    away = -1.0 if (nearest.x - first.x) * left_x + (nearest.y - first.y) * left_y > 0.0 else 1.0
+    steps = round(config.max_side_shift_m / config.side_shift_step_m)
+    moved = first
+    for k in range(1, steps + 1):
+        moved = beside(stance, side_m + away * k * config.side_shift_step_m)
+        if legs_clear(moved, feet, keep_out):
+            return moved
+    return moved
+
+
+def legs_clear(stance: Stance, feet: Feet, keep_out: Sequence[KeepOut]) -> bool:
+    """Whether each sole's centre line (heel to toe) and the line between the soles, widened by
+    ``feet.radius_m``, miss every disc."""
+    c, s = math.cos(stance.yaw), math.sin(stance.yaw)
+    left = (stance.x - s * feet.half_spacing_m, stance.y + c * feet.half_spacing_m)
+    right = (stance.x + s * feet.half_spacing_m, stance.y - c * feet.half_spacing_m)
+    toe_x, toe_y = c * feet.half_length_m, s * feet.half_length_m
+    segments = [((x - toe_x, y - toe_y), (x + toe_x, y + toe_y)) for x, y in (left, right)] + [(left, right)]
+    return all(_distance_to_segment((disc.x, disc.y), *segment) >= disc.radius + feet.radius_m
+               for disc in keep_out for segment in segments)
+
+
+def _distance_to_segment(point: tuple[float, float], start: tuple[float, float], end: tuple[float, float]) -> float:
+    """Distance [m] from ``point`` to the segment from ``start`` to ``end`` (2-D)."""
+    dx, dy = end[0] - start[0], end[1] - start[1]
+    length2 = dx * dx + dy * dy
+    t = 0.0 if length2 == 0.0 else max(0.0, min(1.0, ((point[0] - start[0]) * dx + (point[1] - start[1]) * dy) / length2))
+    return math.hypot(point[0] - start[0] - t * dx, point[1] - start[1] - t * dy)
 
 
 def beside(stance: Stance, left_m: float) -> Stance:

@@ -14,7 +14,7 @@ from robot_models import g1_tables
 from sim_bridge.arm import PickPlaceStage
 from sim_bridge.controller import Slot
 from sim_bridge.errors import InvalidGoalError, UnknownNameError
-from sim_bridge.fetch import FetchGoal, FetchSkill, StanceConfig, plan_stance
+from sim_bridge.fetch import FetchGoal, FetchSkill, StanceConfig, goal as goal_module, plan_stance, stance as stance_module
 from sim_bridge.fetch.bimanual import grip_forces, palms_of, tilt_of
 from sim_bridge.fetch.rig import FetchRig
 from sim_bridge.locomotion import LocomotionMode
@@ -157,6 +157,29 @@ def test_a_stance_faces_the_nearest_edge_and_a_deep_point_has_none(robot):
     assert side.yaw == pytest.approx(-math.pi / 2) and side.y == pytest.approx(-2.3 + config.reach_m)
     with pytest.raises(InvalidGoalError, match="inside the edge"):
         plan_stance(first, 1.2, 0.0, 0.0, config)
+
+
+def test_a_stance_beside_a_table_leg_moves_sideways_away_from_it(robot):
+    # A box near the first table's +y end, turned toward that end: facing its grip the left sole would stand on
+    # the corner leg at (0.95, 0.55). The stance moves to the robot's right (toward the table's middle), along its
+    # left-right axis only, and no farther than the largest shift.
+    first = robot.obstacles[0]
+    config = StanceConfig()
+    feet, legs = goal_module.feet_of(robot, config), goal_module.table_legs(robot)
+    assert feet is not None and len(legs) == 8  # both tables' four legs, read from the model
+    assert any(leg.x == pytest.approx(0.95) and leg.y == pytest.approx(0.55) for leg in legs)
+    x, y, yaw = 1.03, 0.34, math.radians(-26.0)
+    facing = plan_stance(first, x, y, yaw, config)
+    moved = plan_stance(first, x, y, yaw, config, math.pi, 0.0, feet, legs)
+    assert not stance_module.legs_clear(facing, feet, legs)
+    assert stance_module.legs_clear(moved, feet, legs)
+    assert moved.yaw == pytest.approx(facing.yaw)
+    right = (math.sin(facing.yaw), -math.cos(facing.yaw))
+    shift = (moved.x - facing.x) * right[0] + (moved.y - facing.y) * right[1]
+    assert 0.0 < shift <= config.max_side_shift_m + 1e-9
+    assert math.hypot(moved.x - facing.x, moved.y - facing.y) == pytest.approx(shift)
+    # In the middle of the table nothing moves.
+    assert plan_stance(first, 1.02, 0.0, 0.0, config, math.pi, 0.0, feet, legs) == plan_stance(first, 1.02, 0.0, 0.0, config)
 
 
 def test_cancel_while_carrying_stops_and_stands_holding_the_box_and_a_new_fetch_carries_it_on(robot):
