@@ -72,7 +72,7 @@ bench-idle: setup
 bench-scenario: setup
 	$(PY) benchmarks/scenario_bench.py
 
-bench-fetch: setup  ## the G1 fetches the box over 50 seeded layouts in the core, then 5 of them through ROS
+bench-fetch: setup  ## the G1 fetches the box, cube or can over 50 seeded layouts in the core, then 5 of them through ROS
 	$(PY) benchmarks/fetch_bench.py --ros 5
 
 clean:

@@ -215,7 +215,8 @@ def plan_fetch(robot: RobotSpec, data: mujoco.MjData, goal: FetchGoal, grid: Occ
         pick, pick_top_z = place, place_table.height
     else:
         grip_yaw = yaw_of(quat) if hand is None or square else None
-        pick, pick_top_z = plan_stance(table, x, y, grip_yaw, config, symmetry, side, feet, legs), table.height
+        pick = plan_stance(table, x, y, grip_yaw, config, symmetry, side, feet, legs)
+        pick_top_z = table.height
     inflated = grid.inflated(NAVIGATION_INFLATION_M)
     for stance, what in ((pick, "the object"), (place, "the place")):
         if not inflated.is_free(stance.approach_x, stance.approach_y):

@@ -143,6 +143,9 @@ def plan_stance(table: Obstacle, x: float, y: float, grip_yaw: float | None, con
         feet: the robot's feet, kept clear of ``keep_out`` (None: not checked).
         keep_out: discs of the floor the feet keep clear of (the table legs).
 
+    The approach point of a stance moved sideways is moved back along the heading to stay ``approach_edge_m``
+    from the edge.
+
     Raises:
         InvalidGoalError: no edge of the table lets the robot reach the point (the message says why).
     """
@@ -173,7 +176,13 @@ def plan_stance(table: Obstacle, x: float, y: float, grip_yaw: float | None, con
         stance_x, stance_y = x - reach * c, y - reach * s
         back = (depth + config.approach_edge_m) / math.cos(offset)  # approach_edge_m from the edge, turned or not
         facing = Stance(stance_x, stance_y, wrap(heading), x - back * c, y - back * s, table.name)
-        return _clear_of_legs(facing, side_m, config, feet, keep_out)
+        moved = _clear_of_legs(facing, side_m, config, feet, keep_out)
+        # A sideways move of a turned stance brings its approach point nearer the edge (or farther): back along the
+        # heading until it is approach_edge_m out again.
+        inward_x, inward_y = math.cos(normal), math.sin(normal)
+        nearer = (moved.approach_x - facing.approach_x) * inward_x + (moved.approach_y - facing.approach_y) * inward_y
+        extra = nearer / math.cos(offset)
+        return replace(moved, approach_x=moved.approach_x - extra * c, approach_y=moved.approach_y - extra * s)
     raise InvalidGoalError(f"no stance at {table.name} reaches ({x:.2f}, {y:.2f}): " + "; ".join(problems))
 
 

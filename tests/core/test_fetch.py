@@ -178,6 +178,11 @@ def test_a_stance_beside_a_table_leg_moves_sideways_away_from_it(robot):
     shift = (moved.x - facing.x) * right[0] + (moved.y - facing.y) * right[1]
     assert 0.0 < shift <= config.max_side_shift_m + 1e-9
     assert math.hypot(moved.x - facing.x, moved.y - facing.y) == pytest.approx(shift)
+    # A stance moved sideways keeps its approach point approach_edge_m out from the edge (turned 28 degrees, 10 cm to
+    # the left, as for one hand: moved along the robot's left only it would come 4.7 cm nearer the table).
+    beside = plan_stance(first, 1.03, -0.15, math.radians(-28.0), config, math.pi / 2, 0.10)
+    edge_x = first.center_xy[0] - first.half_size_xy[0]
+    assert edge_x - beside.approach_x == pytest.approx(config.approach_edge_m)
     # In the middle of the table nothing moves.
     assert plan_stance(first, 1.02, 0.0, 0.0, config, math.pi, 0.0, feet, legs) == plan_stance(first, 1.02, 0.0, 0.0, config)
 
