@@ -155,7 +155,7 @@ def test_a_can_is_taken_from_any_side_and_a_turned_cube_from_its_nearest_face(ro
         assert turned.pick.yaw == pytest.approx(0.0, abs=1e-9)
         cube = plan_for("cube", 20.0)
         assert not cube.round and cube.pick.yaw == pytest.approx(math.radians(20.0))
-        with pytest.raises(InvalidGoalError, match="heading .* off facing the edge"):
+        with pytest.raises(InvalidGoalError, match=r"heading .* off facing the edge"):
             plan_for("cube", 40.0)
     finally:
         mujoco.mj_resetDataKeyframe(rig.sim.model, rig.sim.data, rig.sim.model.key(robot.default_keyframe).id)
