@@ -87,7 +87,6 @@ class FetchPlan:
         place_center: where the object's centre rests at the end, world frame [m], shape (3,).
         place_top_z: the place table's top height [m].
         pick_top_z: the height of the table the object rests on [m].
-        round: the object is a cylinder: held the same from any side (its yaw means nothing).
     """
 
     body: int
@@ -98,7 +97,6 @@ class FetchPlan:
     place_center: np.ndarray
     place_top_z: float
     pick_top_z: float
-    round: bool = False
 
 
 def _extent_of(model: mujoco.MjModel, body: int, name: str) -> tuple[np.ndarray, bool]:
@@ -189,9 +187,8 @@ def plan_fetch(robot: RobotSpec, data: mujoco.MjData, goal: FetchGoal, grid: Occ
         width = 2.0 * float(half[1])
         raise InvalidGoalError(f"object {goal.object_name!r} ({width:.3f} m wide across its grip axis (y)) is for "
                                + ("both palms, not one hand" if hand is not None else "one hand, not both palms"))
-    # A hand's fingers hold a square object turned by any quarter turn; a cylinder from any side (its yaw is no grip).
-    is_box = _extent_of(robot.model, body, goal.object_name)[1]
-    square = hand is not None and is_box and abs(float(half[0]) - float(half[1])) < 1e-6
+    # A hand's fingers hold a square object turned by any quarter turn; a cylinder from any side.
+    square = hand is not None and abs(float(half[0]) - float(half[1])) < 1e-6
     symmetry = math.pi / 2 if square else math.pi
     side = 0.0 if hand is None else math.copysign(config.hand_side_m, hand.palm_normal_in_tool[1])
     config = config if hand is None else replace(config, reach_m=config.hand_reach_m)
@@ -205,7 +202,9 @@ def plan_fetch(robot: RobotSpec, data: mujoco.MjData, goal: FetchGoal, grid: Occ
         raise InvalidGoalError(f"object {goal.object_name!r} at ({x:.2f}, {y:.2f}, {z:.2f}) does not rest upright on a "
                                f"table top ({', '.join(t.name for t in tables) or 'no tables'})")
     place_table = table_under(tables, goal.place_x, goal.place_y)
-    feet, legs = feet_of(robot, config), table_legs(robot)
+    # Both palms only: a one-hand stance stands 10 cm aside already, and moved farther the hand's pose beside the
+    # object left the arm's reach (the can near the table's end: 16 mm short).
+    feet, legs = (feet_of(robot, config), table_legs(robot)) if hand is None else (None, ())
     place = None if place_table is None else plan_stance(place_table, goal.place_x, goal.place_y, goal.place_yaw,
                                                          config, symmetry, side, feet, legs)
     if place_table is None or place is None or not _fits(place_table, goal.place_x, goal.place_y, place.yaw, half):
@@ -223,7 +222,7 @@ def plan_fetch(robot: RobotSpec, data: mujoco.MjData, goal: FetchGoal, grid: Occ
             raise InvalidGoalError(f"the approach to {what} ({stance.approach_x:.2f}, {stance.approach_y:.2f}) is "
                                    "blocked by an obstacle")
     center = np.array([goal.place_x, goal.place_y, place_table.height + float(half[2])])
-    return FetchPlan(body, half, mass, pick, place, center, place_table.height, pick_top_z, round=not is_box)
+    return FetchPlan(body, half, mass, pick, place, center, place_table.height, pick_top_z)
 
 
 def feet_of(robot: RobotSpec, config: StanceConfig) -> Feet | None:

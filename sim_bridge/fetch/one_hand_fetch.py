@@ -154,7 +154,7 @@ class OneHandFetch(FetchSkill, HandMoves):
         if phase == "align_pick":
             if self._align(plan.pick, data, elapsed):
                 self._grasp_heading = self._base(data)[2]
-                self._rotation = grasp_rotation(self.hand, self._object_yaw(data, self._grasp_heading), self._grasp_heading,
+                self._rotation = grasp_rotation(self.hand, yaw_of(data.xquat[plan.body]), self._grasp_heading,
                                                 config.palm_tilt(float(plan.half_size[2])))
                 self._enter("beside", Stage.DESCEND)
                 self._move(self._beside(center), config.reach_speed_mps)
@@ -219,18 +219,12 @@ class OneHandFetch(FetchSkill, HandMoves):
         """The hand's moves judge their own reach (see ``_advance``)."""
         return None
 
-    def _object_yaw(self, data: mujoco.MjData, heading: float) -> float:
-        """The object's yaw for the grasp [rad]: a cylinder is held as if it faced ``heading`` (any side is a face)."""
-        plan = self.plan
-        assert plan is not None
-        return heading if plan.round else yaw_of(data.xquat[plan.body])
-
     def _ready_pose(self, data: mujoco.MjData, top_z: float) -> None:
         """Raise the hand ready (its pose at the stance, carried to where the robot stands now) and swing the
         other arm back."""
         plan = self.plan
         assert plan is not None
-        self._rotation = grasp_rotation(self.hand, self._object_yaw(data, plan.pick.yaw), plan.pick.yaw,
+        self._rotation = grasp_rotation(self.hand, yaw_of(data.xquat[plan.body]), plan.pick.yaw,
                                         self.hand_config.palm_tilt(float(plan.half_size[2])))
         x, y, _ = self._feet(data)
         out = self.hand_config.approach_m * (self._rotation @ np.asarray(self.layout.palm_normal_in_tool, dtype=float))
