@@ -1,7 +1,7 @@
 """All-in-one bringup: the sim node and every server that exists for the robot, as a launch file would.
 
-``bringup --robot g1|panda [--scene course|tables] [--rtf X] [--paused]``. Each node runs in its own
-process (so the physics thread never waits for a server's Python), with the same names and
+``bringup --robot g1|panda [--scene course|tables] [--rtf X] [--paused] [--clock-rate HZ]``. Each node runs in its
+own process (so the physics thread never waits for a server's Python), with the same names and
 interfaces as when started one by one. Ctrl-C (or SIGTERM) stops them all.
 
 A node that dies (a non-zero exit) is reported (which, its exit code, its last lines of output) and started again, as
@@ -24,8 +24,10 @@ from typing import Any
 import robot_models
 from nodes.launch.result_keeper import ResultKeeper
 from nodes.servers.actions import ACTION_TYPES, SERVED_BY
+from sim_ros.names import MAX_STREAM_RATE_HZ
 from sim_ros.processes import ChildProcess
 
+MIN_CLOCK_RATE_HZ = 10.0  # /sim's clock_rate range: this to sim_ros.names.MAX_STREAM_RATE_HZ
 NAMESPACE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*")
 
 
@@ -35,6 +37,8 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--scene", default="", help=f"scene variant ({robot_models.scenes_summary()}); default: the robot's own")
     parser.add_argument("--rtf", type=float, default=1.0, help="real-time factor; 0 = as fast as possible")
     parser.add_argument("--paused", action="store_true", help="start with the physics paused")
+    parser.add_argument("--clock-rate", type=float, default=None,
+                        help="/sim's /clock rate [Hz of sim time] (default: its clock_rate parameter's, 100)")
     parser.add_argument("--no-respawn", dest="respawn", action="store_false",
                         help="a node that dies stops the others (default: it is started again)")
     parser.add_argument("--respawn-limit", type=int, default=5, help="restarts allowed per node (default 5)")
@@ -54,6 +58,8 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
                      "not starting with a digit (e.g. r1 or team/r1)")
     if not 0 <= options.foxglove_port <= 65535:
         parser.error("--foxglove-port must be in [0, 65535]")
+    if options.clock_rate is not None and not MIN_CLOCK_RATE_HZ <= options.clock_rate <= MAX_STREAM_RATE_HZ:
+        parser.error(f"--clock-rate must be in [{MIN_CLOCK_RATE_HZ:g}, {MAX_STREAM_RATE_HZ:g}] Hz of sim time")
     if options.respawn_limit < 0 or not 0.0 <= options.respawn_delay <= 60.0:
         parser.error("--respawn-limit must be >= 0 and --respawn-delay in [0, 60] s")
     return options
@@ -64,6 +70,8 @@ def commands_for(options: argparse.Namespace, ros_args: list[str]) -> list[list[
     scene = ["-p", f"scene:={options.scene}"] if options.scene else []  # /sim's, and the servers' (goals name its objects)
     sim = ["sim_node", "--ros-args", "-p", f"robot:={options.robot}", "-p", f"real_time_factor:={float(options.rtf)}",
            "-p", f"start_paused:={str(bool(options.paused)).lower()}", *scene]
+    if options.clock_rate is not None:
+        sim += ["-p", f"clock_rate:={float(options.clock_rate)}"]
     servers = [["arm_server", "--ros-args", "-p", f"robot:={options.robot}", *scene]]
     if robot_models.walks(options.robot):
         servers.append(["locomotion_server", "--ros-args", "-p", f"robot:={options.robot}", *scene])

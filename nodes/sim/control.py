@@ -58,8 +58,10 @@ class SimControl(Protocol):
         """Publish every stream at the present sim time (after the state was changed from outside)."""
         ...
 
-    def step_while_paused(self, until_s: float) -> int:
+    def step_while_paused(self, until_s: float, stop_at_goal_end: bool = False) -> int:
         """Step a paused simulation up to sim time ``until_s`` [s], publishing what falls due; returns goals ended.
+
+        With ``stop_at_goal_end``, it stops at the first publication stop after a skill goal ended.
 
         Raises:
             SteppingError: a step failed; the simulation was reset to its keyframe.

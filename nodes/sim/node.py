@@ -277,8 +277,10 @@ class SimNode(LifecycleNode):
         with self._lock:
             self._publications.publish_due(self.sim.time, force=True)
 
-    def step_while_paused(self, until_s: float) -> int:
+    def step_while_paused(self, until_s: float, stop_at_goal_end: bool = False) -> int:
         """Step a paused simulation up to sim time ``until_s`` [s], publishing what falls due; returns goals ended.
+
+        With ``stop_at_goal_end``, it stops at the first publication stop after a skill goal ended.
 
         Raises:
             SteppingError: a step failed (the physics diverged, a controller failed): the simulation was
@@ -286,7 +288,7 @@ class SimNode(LifecycleNode):
         """
         assert self._stepper is not None
         with self._lock:
-            return self._stepper.advance_to(until_s)
+            return self._stepper.advance_to(until_s, stop_at_goal_end)
 
     def legs_busy(self) -> bool:
         """Whether a skill goal (Walk, NavigateToPose, ResetPose) drives the legs."""

@@ -88,7 +88,7 @@ class SimServices:
             else:
                 try:
                     response.goals_ended = self._control.step_while_paused(
-                        sim.time + request.steps * sim.control_timestep - 1e-9)
+                        sim.time + request.steps * sim.control_timestep - 1e-9, request.stop_at_goal_end)
                 except SteppingError as error:
                     response.goals_ended = error.goals_ended
                     response.success = False
@@ -96,6 +96,7 @@ class SimServices:
                     response.sim_time = sim.time
                     return response
                 response.success = True
-                response.message = f"stepped {request.steps} control steps"
+                response.message = (f"stepped {request.steps} control steps" if not response.goals_ended
+                                    or not request.stop_at_goal_end else "stopped early: a goal ended")
             response.sim_time = sim.time
         return response

@@ -52,15 +52,17 @@ class Stepper:
         plugins.after_step()
         self._publications.publish_due(sim.time)
 
-    def advance_to(self, until_s: float) -> int:
+    def advance_to(self, until_s: float, stop_at_goal_end: bool = False) -> int:
         """Step up to sim time ``until_s`` [s] in stretches, publishing what falls due; returns how many skill goals ended.
+
+        With ``stop_at_goal_end``, it returns at the end of the first stretch in which a skill goal ended.
 
         Raises:
             SteppingError: a step failed; the simulation was reset to its keyframe before this is raised.
         """
         ended = 0
         try:
-            while self._sim.time < until_s:
+            while self._sim.time < until_s and not (stop_at_goal_end and ended):
                 ended += self._advance_bounded(until_s)
         except Exception as error:  # a failed step is reported, the node keeps serving
             self.recover(error)

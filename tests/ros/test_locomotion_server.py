@@ -10,10 +10,11 @@ import pytest
 from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
+from std_srvs.srv import Trigger
 
 import robot_models
 from sim_interfaces.action import NavigateToPose, Walk
-from sim_interfaces.srv import Push, Reset
+from sim_interfaces.srv import Push, Reset, Step
 from sim_ros.conversions import yaw_of
 from sim_ros.stamps import seconds_of
 from tests.ros.actions import action_client, ready_client, result, send, sim_now as sim_at, wait_feedback
@@ -103,6 +104,26 @@ def test_walk_two_metres_forward_then_half_a_metre_back(client, walk, odom):
     back = result(client, send(client, walk, Walk.Goal(distance=-0.5)), timeout=120.0)
     assert back.result.error_code == Walk.Result.SUCCESS, back.result.error_msg
     assert back.result.final_distance == pytest.approx(-0.5, rel=0.05)
+
+
+def test_a_paused_step_stops_where_the_walk_ends(client, walk, odom):
+    """/sim/step with stop_at_goal_end returns at the publication stop after the goal ended, not after all its steps."""
+    reset(client, odom)
+    assert client.call(Trigger, "/sim/pause", Trigger.Request()).success
+    try:
+        sent = send(client, walk, Walk.Goal(distance=0.3, speed=0.3))
+        assert sent.handle.accepted
+        wait_feedback(client, sent, lambda _feedback: True, 60.0, "the walk to start in the paused sim")
+        start = client.call(Step, "/sim/step", Step.Request(steps=1)).sim_time
+        stepped = client.call(Step, "/sim/step", Step.Request(steps=5000, stop_at_goal_end=True), timeout=120.0)
+        assert stepped.success and stepped.goals_ended == 1, stepped.message
+        assert start + 0.5 < stepped.sim_time < start + 15.0, "stopped where the 0.3 m walk ended, not 20 s later"
+        outcome = result(client, sent, timeout=60.0)
+        assert outcome.status == GoalStatus.STATUS_SUCCEEDED, outcome.result.error_msg
+        again = client.call(Step, "/sim/step", Step.Request(steps=50, stop_at_goal_end=True))
+        assert again.goals_ended == 0 and again.sim_time == pytest.approx(stepped.sim_time + 50 * 0.004, abs=1e-9)
+    finally:
+        assert client.call(Trigger, "/sim/resume", Trigger.Request()).success
 
 
 def test_walking_speed_changes_the_pace_mid_walk(client, walk, odom):

@@ -165,7 +165,7 @@ class StepRecorder:
     def wait_sim(self, duration):
         self.calls.append(("wait_sim", duration))
 
-    def wait_until(self, predicate, timeout, what, line):
+    def wait_until(self, predicate, timeout, what, line, checks_measures=True):
         self.calls.append(("wait_until", predicate(), timeout, what))
 
     def condition_holds(self, condition):

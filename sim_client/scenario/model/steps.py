@@ -136,8 +136,12 @@ class StepRunner(Protocol):
         """Let ``duration`` of sim time pass."""
         ...
 
-    def wait_until(self, predicate: Callable[[], bool], timeout: float, what: str, line: int) -> None:
-        """Let sim time pass until ``predicate`` holds; a failure of the step after ``timeout``."""
+    def wait_until(self, predicate: Callable[[], bool], timeout: float, what: str, line: int,
+                   checks_measures: bool = True) -> None:
+        """Let sim time pass until ``predicate`` holds; a failure of the step after ``timeout``.
+
+        ``checks_measures`` False: the predicate reads only whether goals ended (checked less often).
+        """
         ...
 
     def condition_holds(self, condition: Condition) -> bool:
@@ -246,7 +250,8 @@ def _run_wait(run: StepRunner, step: WaitStep) -> None:
         run.wait_until(lambda: run.condition_holds(condition), step.timeout, f"until {condition.describe()}", step.line)
     elif step.goal is not None:
         goal_id = step.goal
-        run.wait_until(lambda: run.goal_done(goal_id), step.timeout, f"for goal {goal_id} to end", step.line)
+        run.wait_until(lambda: run.goal_done(goal_id), step.timeout, f"for goal {goal_id} to end", step.line,
+                       checks_measures=False)
 
 
 def _parse_send_goal(f: Fields, head: StepHead, robot: RobotFacts) -> SendGoalStep:

@@ -37,7 +37,10 @@ from sim_interfaces.msg import LocomotionState, ObjectStates
 from sim_interfaces.srv import Push, Reset
 from sim_ros.session import RESPONSE_QOS, RosSession, TopicRecorder, WaitTimeout
 
-CHUNK_S = 0.02  # sim time advanced between checks [s]
+CHUNK_S = 0.02  # sim time advanced between checks of conditions on measures [s]
+# Sim time advanced at once when only goal ends (seen where they happen: /sim stops its step there) and
+# times are awaited [s]: fewer /sim/step round trips per sim second, the same numbers.
+STRIDE_S = 0.25
 CAMERA_FRAMES_KEPT = 3000  # camera images kept for camera.png (~0.7 GB at 320x240 at most)
 
 
@@ -174,18 +177,34 @@ class ScenarioRun:
                 text += f"  {goal_id}: {feedback_summary(handle.feedback)}"
         return text
 
+    def _stride(self, checks_measures: bool) -> float:
+        """Sim time [s] to advance before the next check.
+
+        ``CHUNK_S`` while a condition on measures is watched (a wait's, a cancel trigger's); else up to
+        ``STRIDE_S``, ending where the next cancel trigger with a delay falls due. Goal ends need no
+        short chunks: a lock-stepped /sim stops its step at the first publication stop after a goal ended.
+        """
+        if not self.lock_step or checks_measures or any(t.when is not None for t in self.cancel_triggers.values()):
+            return CHUNK_S
+        stride = STRIDE_S
+        for goal_id, trigger in self.cancel_triggers.items():
+            if trigger.after is not None:
+                stride = min(stride, self.marks[f"{goal_id}.sent"] + trigger.after - self.now())
+        return max(stride, 0.0)
+
     def wait_sim(self, duration: float) -> None:
         end = self.now() + duration
         while self.now() < end - 1e-6:
-            self.advance(min(CHUNK_S, end - self.now()))
+            self.advance(min(self._stride(False), end - self.now()))
             self._check_wall()
 
-    def wait_until(self, predicate: Callable[[], bool], timeout: float, what: str, line: int) -> None:
+    def wait_until(self, predicate: Callable[[], bool], timeout: float, what: str, line: int,
+                   checks_measures: bool = True) -> None:
         start = self.now()
         while not predicate():
             if self.now() - start > timeout:
                 raise StepFailure(f"line {line}: waited {timeout:g} s of sim time {what}")
-            self.advance(CHUNK_S)
+            self.advance(min(self._stride(checks_measures), start + timeout - self.now() + CHUNK_S))
             self._check_wall()
 
     def _check_wall(self) -> None:
@@ -237,7 +256,8 @@ class ScenarioRun:
             self.session.wait_for(lambda: handle.feedback is not None or handle.done, SERVICE_WALL_S,
                                   f"goal {step.id} to start in /sim")
         if step.wait:
-            self.wait_until(lambda: handle.done, step.timeout, f"for the result of goal {step.id}", step.line)
+            self.wait_until(lambda: handle.done, step.timeout, f"for the result of goal {step.id}", step.line,
+                            checks_measures=False)
             self._tick()
 
     def set_param(self, step: SetParamStep) -> None:

@@ -80,7 +80,9 @@ class SimTime:
     def step(self, steps: int) -> float:
         """Step the paused sim ``steps`` control steps; returns the sim time it reached [s]."""
         done_before = self._goals_done()
-        response = call_service(self.session, self._step, StepSrv.Request(steps=steps), "/sim/step")
+        # /sim stops early where a goal ends, so that the run sees each goal end where it happened.
+        request = StepSrv.Request(steps=steps, stop_at_goal_end=True)
+        response = call_service(self.session, self._step, request, "/sim/step")
         if not response.success:
             raise StepFailure(f"/sim/step refused: {response.message}")
         self._sim_now = max(self._sim_now, response.sim_time)
