@@ -191,7 +191,10 @@ def plan_fetch(robot: RobotSpec, data: mujoco.MjData, goal: FetchGoal, grid: Occ
     square = hand is not None and abs(float(half[0]) - float(half[1])) < 1e-6
     symmetry = math.pi / 2 if square else math.pi
     side = 0.0 if hand is None else math.copysign(config.hand_side_m, hand.palm_normal_in_tool[1])
-    config = config if hand is None else replace(config, reach_m=config.hand_reach_m)
+    # One hand: the stance turns with the object as far as it turns at all (the wrist turning the rest ran the arm
+    # into its limits).
+    config = config if hand is None else replace(config, reach_m=config.hand_reach_m, max_grip_turn_rad=0.0,
+                                                         max_heading_offset_rad=config.hand_max_heading_offset_rad)
     mass = float(robot.model.body_mass[body])
     tables = robot.obstacles
     position, quat = data.xpos[body], data.xquat[body]

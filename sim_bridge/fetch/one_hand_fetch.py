@@ -26,11 +26,15 @@ carried or placed), GRASP_FAILED, UNREACHABLE, PLACEMENT_FAILED, TIMEOUT. Cancel
 and keeps holding what the fingers hold (their servo targets stay); a later fetch of an object the hand
 holds goes straight to the place.
 
-The hand: the right one when the robot has it (the hand the standing pick was measured with,
+The hand: the one that holds the object already; else the one whose stance keeps the body farther from the
+table (the stance stands to the side away from the hand, and turned with the object that side may run toward
+the table's edge); on a tie the right one when the robot has it (the hand the standing pick was measured with,
 tests/core/test_one_hand.py), else the robot's first.
 """
 
 from __future__ import annotations
+
+import math
 
 import mujoco
 import numpy as np
@@ -55,7 +59,7 @@ from sim_bridge.fetch.one_hand import (
 )
 from sim_bridge.fetch.one_hand_pick import HandMoves, OneHandConfig
 from sim_bridge.fetch.skill import FetchSkill
-from sim_bridge.fetch.stance import StanceConfig
+from sim_bridge.fetch.stance import StanceConfig, edge_clearance
 from sim_bridge.locomotion import WalkingController
 from sim_bridge.navigation import OccupancyGrid
 from sim_bridge.skills.base import SkillOutcome, Values
@@ -66,6 +70,7 @@ READY_BACKS_M = (0.12, 0.09, 0.06, 0.03, 0.0)  # the ready hand: its grasp pose 
 READY_RISE_M = 0.08  # ... and this far up, clear above the table top [m]
 OTHER_ARM_SWING_RAD = 0.4  # the other arm's first joint (the G1's shoulder pitch): swung back, clear of the table
 PREFERRED_HAND = "right_arm"
+HAND_CLEARANCE_TIE_M = 0.01  # the other hand only when its stance stands this much farther from the table [m]
 HAND_ALIGN_TOLERANCE_M = 0.015  # the steps onto a stance end this close to it [m]
 HAND_PHASES = ("align_pick", "beside", "reach", "close", "lift", "align_place", "over_place", "lower", "release",
                "retreat")
@@ -91,25 +96,60 @@ class OneHandFetch(FetchSkill, HandMoves):
         # Closer onto the stances than the palms need: one arm reaching across in front of the body has a few
         # centimetres to spare before its elbow meets the torso.
         super().__init__(robot, walker, arms, grid, goal, stance, grip or GripConfig(align_tolerance_m=HAND_ALIGN_TOLERANCE_M))
+        self._choose_hand = arm is None
         arm = arm or (PREFERRED_HAND if PREFERRED_HAND in robot.hands else next(iter(robot.hands), ""))
         if arm not in robot.hands:
             raise InvalidGoalError(f"robot {robot.name!r} has no hand on {arm!r} to grasp with; hands: "
                                    f"{', '.join(robot.hands) or 'none'}")
-        self.layout = robot.hands[arm]
         self.hand_config = hand_config or OneHandConfig()
-        self.hand = hand_of(robot.model, self.layout)
-        c = self.hand_config
-        self.closer = FingerCloser(self.hand, c.close_speed, c.touch_force_n, c.squeeze_rad)
-        self.other_arm = next((a for a in arms.arms if a != arm), None)
-        self.fingers: dict[str, float] = dict.fromkeys([*self.layout.fingers, PALM], 0.0)
+        self._use_hand(arm)
         self._rotation = np.eye(3)  # the tool's orientation for the hand's moves, world frame
         self._tool = np.zeros(3)  # the tool position commanded last, world [m]
         self._grasp_heading = 0.0  # the robot's heading when the hand took the object [rad]
 
-    def start(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    def _use_hand(self, arm: str) -> None:
+        """Grasp with ``arm``'s hand (a key of ``robot.hands``); the other arm swings clear."""
+        self.layout = self.robot.hands[arm]
+        self.hand = hand_of(self.robot.model, self.layout)
+        c = self.hand_config
+        self.closer = FingerCloser(self.hand, c.close_speed, c.touch_force_n, c.squeeze_rad)
+        self.other_arm = next((a for a in self.arms.arms if a != arm), None)
+        self.fingers: dict[str, float] = dict.fromkeys([*self.layout.fingers, PALM], 0.0)
+
+    def _holds(self, model: mujoco.MjModel, data: mujoco.MjData, arm: str) -> bool:
         name = self.goal.object_name
-        held = (name in self.robot.objects and self.layout.arm in self.arms.arms
-                and holds(finger_forces(model, data, self.hand, model.body(name).id), self.hand, self.hand_config.hold_force_n))
+        hand = hand_of(model, self.robot.hands[arm])
+        return (name in self.robot.objects and arm in self.arms.arms
+                and holds(finger_forces(model, data, hand, model.body(name).id), hand, self.hand_config.hold_force_n))
+
+    def _pick_hand(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Unless the goal named the arm: the hand that holds the object already, else the one whose stance keeps
+        the body farther from the table. The stance stands ``hand_side_m`` to the side away from the hand; turned
+        with the object, that side runs toward the table's edge or away from it, and a stance moved toward the edge
+        put the legs against the table (a cube turned -25 to -30 degrees, the right hand: the robot bounced off
+        the table's edge and stood 15 cm short). The preferred hand unless the other stands clear by more than
+        ``HAND_CLEARANCE_TIE_M``."""
+        if not self._choose_hand or len(self.robot.hands) < 2:
+            return
+        held = [arm for arm in self.robot.hands if self._holds(model, data, arm)]
+        if held:
+            self._use_hand(held[0])
+            return
+        best, best_clear = self.layout.arm, -math.inf
+        for arm in sorted(self.robot.hands, key=lambda a: a != self.layout.arm):  # the preferred hand first
+            try:
+                plan = plan_fetch(self.robot, data, self.goal, self.grid, self.stance_config, hand=self.robot.hands[arm])
+            except InvalidGoalError:
+                continue
+            table = next(t for t in self.robot.obstacles if t.name == plan.pick.table)
+            clear = edge_clearance(table, plan.pick.x, plan.pick.y)
+            if clear > best_clear + HAND_CLEARANCE_TIE_M:
+                best, best_clear = arm, clear
+        self._use_hand(best)
+
+    def start(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        self._pick_hand(model, data)
+        held = self._holds(model, data, self.layout.arm)
         self.plan = plan_fetch(self.robot, data, self.goal, self.grid, self.stance_config, in_hand=held, hand=self.layout)
         self._base_qpos = int(model.jnt_qposadr[model.body_jntadr[model.body(self.robot.base_body).id]])
         self._t0 = self._now = float(data.time)

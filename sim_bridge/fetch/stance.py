@@ -3,9 +3,10 @@
 A table top is an obstacle of the scene (:class:`~robot_models.spec.Obstacle`): its top is at its
 height, over its footprint. A stance faces the edge of the top nearest the point to work at, with the
 pelvis ``reach`` behind that point along the edge's inward normal, and its heading the one that
-lines the object's grip axis up with the robot's left-right axis. It is refused when the point lies
-too deep inside the top (the body would meet the table), or when the grip heading is too far from
-facing the edge.
+lines the object's grip axis up with the robot's left-right axis, turned at most
+``max_heading_offset_rad`` from facing the edge: a grip needing more, by at most ``max_grip_turn_rad``, gets
+the most and the hands turn the rest. It is refused when the point lies too deep inside the top (the body
+would meet the table), or when the grip heading is farther still from facing the edge.
 
 Where the feet would stand against a table's leg (an object near the end of a table, the robot turned
 toward that end), the stance moves sideways, along the robot's left-right axis and away from the nearest
@@ -44,8 +45,11 @@ class StanceConfig:
         approach_edge_m: the approach point, where navigation ends, is this far from the table's edge
             [m]; it must be outside the navigation map's inflated obstacles.
         max_heading_offset_rad: largest angle between the stance heading and the edge's inward normal.
+        max_grip_turn_rad: a grip needing a heading farther off than ``max_heading_offset_rad`` by at most this
+            gets a stance turned ``max_heading_offset_rad``; the hands turn the rest (the palms take the box's yaw).
         hand_reach_m: ``reach_m`` for a grasp with one hand [m] (the pelvis stands about 5 cm behind the feet, and
             the hand reaches less far forward than the palms on a box's sides).
+        hand_max_heading_offset_rad: ``max_heading_offset_rad`` for a grasp with one hand.
         hand_side_m: for a grasp with one hand, the stance stands this far to the side of the object, away
             from the hand (the object in front of that hand's shoulder) [m].
         max_side_shift_m: farthest a stance moves sideways to keep the feet clear of a table's legs [m].
@@ -60,7 +64,9 @@ class StanceConfig:
     approach_back_m: float = 0.35
     approach_edge_m: float = 0.45
     max_heading_offset_rad: float = math.radians(30.0)
+    max_grip_turn_rad: float = math.radians(15.0)
     hand_reach_m: float = 0.14
+    hand_max_heading_offset_rad: float = math.radians(45.0)
     hand_side_m: float = 0.10
     max_side_shift_m: float = 0.06
     side_shift_step_m: float = 0.02
@@ -120,6 +126,16 @@ def table_under(tables: Sequence[Obstacle], x: float, y: float, margin: float = 
     return None
 
 
+def edge_clearance(table: Obstacle, x: float, y: float) -> float:
+    """Distance [m] from (x, y) to ``table``'s top seen from above: positive outside it, negative inside."""
+    local_x, local_y = _to_local(table, x, y)
+    out_x = abs(local_x) - table.half_size_xy[0]
+    out_y = abs(local_y) - table.half_size_xy[1]
+    if out_x <= 0.0 and out_y <= 0.0:
+        return max(out_x, out_y)
+    return math.hypot(max(out_x, 0.0), max(out_y, 0.0))
+
+
 def _to_local(table: Obstacle, x: float, y: float) -> tuple[float, float]:
     dx, dy = x - table.center_xy[0], y - table.center_xy[1]
     c, s = math.cos(table.yaw), math.sin(table.yaw)
@@ -168,10 +184,14 @@ def plan_stance(table: Obstacle, x: float, y: float, grip_yaw: float | None, con
             continue
         heading = normal if grip_yaw is None else grip_yaw + symmetry_rad * round(wrap(normal - grip_yaw) / symmetry_rad)
         offset = wrap(heading - normal)
-        if abs(offset) > config.max_heading_offset_rad:
+        if abs(offset) > config.max_heading_offset_rad + config.max_grip_turn_rad:
+            most_rad = config.max_heading_offset_rad + config.max_grip_turn_rad
             problems.append(f"the grip needs a heading {math.degrees(offset):.0f} deg off facing the edge "
-                            f"(at most {math.degrees(config.max_heading_offset_rad):.0f})")
+                            f"(at most {math.degrees(most_rad):.0f})")
             continue
+        if abs(offset) > config.max_heading_offset_rad:  # the stance turns its most, the hands the rest
+            offset = math.copysign(config.max_heading_offset_rad, offset)
+            heading = normal + offset
         c, s = math.cos(heading), math.sin(heading)
         stance_x, stance_y = x - reach * c, y - reach * s
         back = (depth + config.approach_edge_m) / math.cos(offset)  # approach_edge_m from the edge, turned or not

@@ -159,6 +159,19 @@ def test_a_stance_faces_the_nearest_edge_and_a_deep_point_has_none(robot):
         plan_stance(first, 1.2, 0.0, 0.0, config)
 
 
+def test_a_box_turned_past_the_stances_most_gets_it_and_the_palms_turn_the_rest(robot):
+    # The robot turns at most 30 degrees from facing the edge; a box turned 40 gets a stance turned 30 (the palms
+    # take the box's yaw, 10 degrees more), one turned 50 is refused with the reason.
+    first = robot.obstacles[0]
+    config = StanceConfig()
+    assert config.max_heading_offset_rad + config.max_grip_turn_rad == pytest.approx(math.radians(45.0))
+    for sign in (1.0, -1.0):
+        turned = plan_stance(first, 1.02, 0.0, sign * math.radians(40.0), config)
+        assert turned.yaw == pytest.approx(sign * config.max_heading_offset_rad)
+    with pytest.raises(InvalidGoalError, match=r"a heading 50 deg off facing the edge \(at most 45\)"):
+        plan_stance(first, 1.02, 0.0, math.radians(50.0), config)
+
+
 def test_a_stance_beside_a_table_leg_moves_sideways_away_from_it(robot):
     # A box near the first table's +y end, turned toward that end: facing its grip the left sole would stand on
     # the corner leg at (0.95, 0.55). The stance moves to the robot's right (toward the table's middle), along its

@@ -20,7 +20,9 @@ from sim_bridge.fetch import FetchGoal, FetchSkill, OneHandFetch, check_fetchabl
 from sim_bridge.fetch.bimanual import tilt_of
 from sim_bridge.fetch.one_hand import PALM, finger_forces
 from sim_bridge.fetch.rig import FetchRig
+from sim_bridge.fetch.stance import edge_clearance
 from sim_bridge.locomotion import LocomotionMode
+from sim_bridge.navigation import grid_from_obstacles
 from sim_bridge.skills import SkillStatus
 
 PLACE = (1.02, -2.8)  # on the second table, 12 cm inside its edge facing the robot's side
@@ -41,17 +43,29 @@ def robot() -> robot_models.RobotSpec:
     return robot_models.load(robot_models.G1, "tables")
 
 
+def _turn(robot: robot_models.RobotSpec, data: mujoco.MjData, name: str, yaw_deg: float) -> None:
+    """Turn object ``name`` about the vertical to ``yaw_deg`` where it stands."""
+    adr = int(robot.model.joint(name).qposadr[0])
+    yaw = math.radians(yaw_deg)
+    data.qpos[adr + 3:adr + 7] = [math.cos(yaw / 2.0), 0.0, 0.0, math.sin(yaw / 2.0)]
+    mujoco.mj_forward(robot.model, data)
+
+
 def _fetch_to_the_second_table(robot: robot_models.RobotSpec, item: g1_tables.ObjectLayout,
-                               others_within_m: float = 0.01) -> None:
-    """Fetch ``item`` from the first table to ``PLACE`` with one hand and check the run, the grip and the placement
-    (the other objects stay within ``others_within_m`` [m] of where they were)."""
+                               others_within_m: float = 0.01, yaw_deg: float = 0.0, arm: str = "right_arm") -> None:
+    """Fetch ``item`` (turned ``yaw_deg`` where it stands) from the first table to ``PLACE`` with ``arm``'s hand and
+    check the run, the grip and the placement (the other objects stay within ``others_within_m`` [m] of where they
+    were)."""
     rig = FetchRig.of(robot)
     sim = rig.sim
+    if yaw_deg:
+        _turn(robot, sim.data, item.name, yaw_deg)
     skill = rig.skill(FetchGoal(item.name, *PLACE))
-    assert isinstance(skill, OneHandFetch) and skill.layout.arm == "right_arm"
+    assert isinstance(skill, OneHandFetch)
     body = sim.model.body(item.name).id
     wall = time.perf_counter()
     run = rig.legs.start(1, skill, sim.model, sim.data)
+    assert skill.layout.arm == arm
     trace = Trace()
     while run.status is SkillStatus.RUNNING and sim.time < MAX_SIM_S:
         sim.step(1)
@@ -95,10 +109,12 @@ def test_the_g1_fetches_the_cube_to_the_second_table_with_one_hand(robot: robot_
     _fetch_to_the_second_table(robot, g1_tables.CUBE)
 
 
-def test_the_g1_fetches_the_can_to_the_second_table_with_one_hand(robot: robot_models.RobotSpec) -> None:
+def test_the_g1_fetches_the_can_turned_with_the_left_hand(robot: robot_models.RobotSpec) -> None:
     """The 12 cm can stands taller than the cube: the palm tilts less (``OneHandConfig.tall_palm_tilt_rad``), or its
-    upper edge tips the can in the hand. Reaching for it the robot brushes the box beside it (12 mm, on the table)."""
-    _fetch_to_the_second_table(robot, g1_tables.CAN, others_within_m=0.02)
+    upper edge tips the can in the hand. Turned -20 degrees the stance turns with it, and the left hand takes it: the
+    stance then stands to the can's right, away from the table (to its left, the right hand's, it came 3.4 cm nearer
+    the edge). Reaching for it the robot may brush the box beside it (on the table)."""
+    _fetch_to_the_second_table(robot, g1_tables.CAN, others_within_m=0.02, yaw_deg=-20.0, arm="left_arm")
 
 
 def test_small_objects_go_to_one_hand_the_box_to_both_palms(robot: robot_models.RobotSpec) -> None:
@@ -133,26 +149,37 @@ def test_what_one_hand_cannot_take_is_refused_with_the_reason(robot: robot_model
     rig.sim.set_controller(Slot.LOCOMOTION, None)
 
 
-def test_a_turned_cube_gets_a_turned_stance_and_one_turned_too_far_is_refused(robot: robot_models.RobotSpec) -> None:
-    # The cube turned 20 degrees gets a stance turned with it; turned 40 (50 the other way) it is refused with the
-    # reason (the robot turns at most 30 degrees from facing the edge).
+def test_a_turned_cube_gets_a_stance_turned_with_it_and_the_hand_that_keeps_clear_of_the_table(
+        robot: robot_models.RobotSpec) -> None:
+    # The stance stands 10 cm to the side away from the hand. Turned with the cube, that side runs toward the table's
+    # edge or away from it: turned -25 degrees, the right hand's stance came 4 cm nearer the edge and the legs met
+    # the table; the left hand's stands as far out as the right hand's does for +25. Turned 40 degrees (50 the other
+    # way, a quarter turn being the same grip) the stance turns 40.
     rig = FetchRig.of(robot)
+    first = robot.obstacles[0]
 
-    def plan_for(name: str, yaw_deg: float):
-        adr = int(robot.model.joint(name).qposadr[0])
-        yaw = math.radians(yaw_deg)
-        rig.sim.data.qpos[adr + 3:adr + 7] = [math.cos(yaw / 2.0), 0.0, 0.0, math.sin(yaw / 2.0)]
-        mujoco.mj_forward(rig.sim.model, rig.sim.data)
-        skill = rig.skill(FetchGoal(name, *PLACE))
+    def started(name: str, yaw_deg: float, arm: str | None = None) -> OneHandFetch:
+        _turn(robot, rig.sim.data, name, yaw_deg)
+        skill = OneHandFetch(robot, rig.walker, rig.arms, grid_from_obstacles(robot.obstacles), FetchGoal(name, *PLACE),
+                             arm=arm)
         skill.start(rig.sim.model, rig.sim.data)
         assert skill.plan is not None
-        return skill.plan
+        return skill
 
     try:
-        cube = plan_for("cube", 20.0)
-        assert cube.pick.yaw == pytest.approx(math.radians(20.0))
-        with pytest.raises(InvalidGoalError, match=r"heading .* off facing the edge"):
-            plan_for("cube", 40.0)
+        plain = started("cube", 0.0)
+        assert plain.layout.arm == "right_arm" and plain.plan.pick.yaw == pytest.approx(0.0)  # a tie: the right hand
+        toward, away = started("cube", 25.0), started("cube", -25.0)
+        assert toward.plan.pick.yaw == pytest.approx(math.radians(25.0))
+        assert away.plan.pick.yaw == pytest.approx(math.radians(-25.0))
+        assert (toward.layout.arm, away.layout.arm) == ("right_arm", "left_arm")
+        right_hand = started("cube", -25.0, arm="right_arm")
+        clear = {name: edge_clearance(first, s.plan.pick.x, s.plan.pick.y)
+                 for name, s in (("left", away), ("right", right_hand))}
+        assert clear["left"] > clear["right"] + 0.03, clear
+        assert edge_clearance(first, toward.plan.pick.x, toward.plan.pick.y) == pytest.approx(clear["left"], abs=0.02)
+        assert started("cube", 40.0).plan.pick.yaw == pytest.approx(math.radians(40.0))
+        assert started("cube", 50.0).plan.pick.yaw == pytest.approx(math.radians(-40.0))
     finally:
         mujoco.mj_resetDataKeyframe(rig.sim.model, rig.sim.data, rig.sim.model.key(robot.default_keyframe).id)
         rig.sim.set_controller(Slot.LOCOMOTION, None)
