@@ -58,7 +58,9 @@ def fetch_through_ros(layouts: Iterable[Layout]) -> Iterator[Outcome]:
                                  ResetSimulation.Request(scope=ResetSimulation.Request.SCOPE_ALL), timeout=SERVICE_WALL_S)
             if reset.result.result != Result.RESULT_OK:
                 raise RuntimeError(f"/sim/reset_simulation: {reset.result.error_message}")
-            for item in g1_tables.OBJECTS:
+            # The others out of the way first: the physics runs between the calls, and the object put where another
+            # still stood at its reset spot (the box on the cube's or the can's) threw both off the table.
+            for item in sorted(g1_tables.OBJECTS, key=lambda o: o.name == layout.object_name):
                 if item.name == layout.object_name:
                     _put(session, item.name, *layout.object_xy, top + item.half_size[2] + 0.001, layout.object_yaw)
                 else:
