@@ -80,6 +80,7 @@ class Publications:
         self._periods: dict[str, float] = {}
         self._stops: tuple[str, ...] = ()
         self._schedule = _Schedule()
+        self._next_stop = 0.0  # the earliest of the stop streams' due times [s]
         self._clock_pub = node.create_publisher(Clock, CLOCK_TOPIC, STREAMS)
         self._joint_pub = node.create_publisher(JointState, JOINT_STATES_TOPIC, STREAMS)
         self._odom_pub = node.create_publisher(Odometry, ODOM_TOPIC, RELIABLE)
@@ -128,15 +129,20 @@ class Publications:
         self._periods = {name: 1.0 / rate if rate > 0 else math.inf for name, rate in rates.items()}
         fastest = min(self._periods[name] for name in STOP_STREAMS)
         self._stops = tuple(name for name, p in self._periods.items() if name in STOP_STREAMS or p < fastest)
+        self._update_next_stop()
 
     def next_stop(self) -> float:
         """Sim time [s] of the next publication that stepping must stop for."""
+        return self._next_stop
+
+    def _update_next_stop(self) -> None:
         schedule = self._schedule
-        return min(getattr(schedule, name) for name in self._stops)
+        self._next_stop = min((getattr(schedule, name) for name in self._stops), default=math.inf)
 
     def restart(self) -> None:
         """Every stream falls due again from t = 0 (sim time was reset)."""
         self._schedule = _Schedule()
+        self._update_next_stop()
 
     # ----- publishing ----------------------------------------------------------------------
     def publish_due(self, now: float, force: bool = False) -> None:
@@ -162,7 +168,8 @@ class Publications:
             if due:
                 schedule.joint_states = next_due(schedule.joint_states, periods["joint_states"], now)
         # The streams below are built and published only while someone subscribes; /clock and
-        # /joint_states are always published.
+        # /joint_states are always published (gated on the writer's subscriber count too, a lock-stepped
+        # walk_2m's lowest base height differed run to run in tests/scenarios/test_determinism.py).
         due = now + eps >= schedule.odom
         if force or due:
             self._publish_odom(now)
@@ -181,6 +188,7 @@ class Publications:
             self._publish_state(now)
             if due:
                 schedule.state = next_due(schedule.state, periods["state"], now)
+        self._update_next_stop()
 
     def publish_rtf(self, factor: float) -> None:
         """``~/real_time_factor``: sim seconds per wall second."""
