@@ -4,9 +4,13 @@ from __future__ import annotations
 
 import threading
 
+import mujoco
+
 from nodes.sim.handoff import HandOffLock
 
 DEADLINE_S = 30.0  # a bound on a loaded machine, not a speed
+BOX = "<mujoco><worldbody><geom type='plane' size='1 1 0.1'/><body pos='0 0 1'><freejoint/>" \
+      "<geom type='box' size='0.1 0.1 0.1'/></body></worldbody></mujoco>"
 
 
 def test_a_thread_waiting_for_the_lock_gets_it_between_two_stretches_of_a_busy_holder():
@@ -14,11 +18,14 @@ def test_a_thread_waiting_for_the_lock_gets_it_between_two_stretches_of_a_busy_h
     stop = threading.Event()
     stretches: list[str] = []  # who held the lock, in order
     handed: list[bool] = []
+    model = mujoco.MjModel.from_xml_string(BOX)
+    data = mujoco.MjData(model)
 
-    def busy_holder() -> None:  # the physics thread as fast as possible: take, work, hand off, again
+    def busy_holder() -> None:  # the physics thread as fast as possible: take, step (the GIL is let go), hand off
         while not stop.is_set():
             lock.acquire()
             stretches.append("holder")
+            mujoco.mj_step(model, data, nstep=200)
             handed.append(lock.hand_off(DEADLINE_S))
 
     holder = threading.Thread(target=busy_holder)
