@@ -6,8 +6,8 @@ For each robot, measured in one run on this machine:
      model. This machine is shared and its speed drifts by 2x within seconds, so the two are
      interleaved: the node is paused (``/sim/pause``) while raw ``mj_step`` runs for a second, then
      resumed and its own 1 Hz real-time-factor reports are read; the figure is the median of the
-     per-round ratios. Measured twice: with no subscriber (as specified: /odom, /tf and /objects
-     are then not built, /clock and /joint_states always are), and with this process subscribed
+     per-round ratios. Measured twice: with no subscriber (as specified: no stream but /clock is
+     then built or published), and with this process subscribed
      to /clock, /joint_states, /odom, /tf and /objects (every stream built and delivered; the
      subscriber's own work then competes for the machine's two cores).
  (b) the sim process's CPU use at real_time_factor 1 with /joint_states at 500 Hz, and the

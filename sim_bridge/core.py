@@ -87,6 +87,7 @@ class Simulation:
         self.robot = robot
         self.model: mujoco.MjModel = robot.model
         self.data = mujoco.MjData(self.model)
+        self._timestep = float(self.model.opt.timestep)  # fixed: the control grid is built on it
         self.decimation = int(robot.control_decimation)
         if self.decimation < 1:
             raise ValueError(f"control decimation must be a whole number >= 1, got {robot.control_decimation}")
@@ -142,7 +143,8 @@ class Simulation:
 
     @property
     def physics_timestep(self) -> float:
-        return float(self.model.opt.timestep)
+        """Physics step [s] (fixed for the simulation's life)."""
+        return self._timestep
 
     @property
     def control_timestep(self) -> float:

@@ -38,6 +38,7 @@ from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Float64
 from tf2_msgs.msg import TFMessage
 
+from nodes.sim.handoff import HandOffLock
 from robot_models.cameras import CameraLayout
 from sim_bridge import Simulation
 from sim_bridge.camera import CameraIntrinsics, CameraRenderer, intrinsics
@@ -112,7 +113,7 @@ class CameraStreams:
         lock: the lock that guards ``sim``; ``publish_due``/``on_reset`` are called with it held.
     """
 
-    def __init__(self, node: Node, sim: Simulation, lock: threading.RLock) -> None:
+    def __init__(self, node: Node, sim: Simulation, lock: HandOffLock) -> None:
         self._node = node
         self._sim = sim
         self._lock = lock

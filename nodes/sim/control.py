@@ -7,9 +7,9 @@ see the node's stepping loop or its publishers.
 
 from __future__ import annotations
 
-import threading
 from typing import Protocol
 
+from nodes.sim.handoff import HandOffLock
 from sim_bridge import SimError
 
 
@@ -30,7 +30,7 @@ class SimControl(Protocol):
     """Pause, reset and step the simulation of ``/sim``; each call takes the lock itself."""
 
     @property
-    def lock(self) -> threading.RLock:
+    def lock(self) -> HandOffLock:
         """The lock every change of the simulation is made under (the physics thread steps under it)."""
         ...
 

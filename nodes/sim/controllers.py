@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import threading
 from typing import Any
 
 from geometry_msgs.msg import Twist, TwistStamped
@@ -24,6 +23,7 @@ from nodes.runtime.parameters import ParameterSpec, declare
 from nodes.servers.protocol import SkillContext
 from nodes.sim.camera import CameraStreams
 from nodes.sim.goal_visuals import GoalVisualsPublisher
+from nodes.sim.handoff import HandOffLock
 from nodes.sim.publication import RELIABLE
 from nodes.sim.sensors import SensorStreams
 from nodes.sim.skills import SkillBridge
@@ -56,7 +56,7 @@ class InLoopPlugins:
             called with it held; message callbacks take it themselves.
     """
 
-    def __init__(self, node: Node, sim: Simulation, lock: threading.RLock) -> None:
+    def __init__(self, node: Node, sim: Simulation, lock: HandOffLock) -> None:
         self._node = node
         self._sim = sim
         self._lock = lock

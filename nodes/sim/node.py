@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import sys
 import threading
-import time
 from typing import Any
 
 import rclpy
@@ -37,6 +36,7 @@ from nodes.runtime.startup import (
     program_name,
 )
 from nodes.sim.controllers import InLoopPlugins
+from nodes.sim.handoff import HandOffLock
 from nodes.sim.publication import Publications
 from nodes.sim.services import SimServices
 from nodes.sim.standard import SimulationStandard
@@ -46,7 +46,7 @@ from sim_bridge.skills import LEGS
 from sim_ros.names import MAX_STREAM_RATE_HZ, SIM_NODE
 
 NODE_NAME = SIM_NODE
-YIELD_EVERY_S = 0.002  # [s of wall time] the physics thread lets waiting services take its lock at least this often
+HAND_OFF_TIMEOUT_S = 0.1  # [s of wall time] longest the physics thread waits for a waiting service to take its lock
 
 PARAMETERS = (
     ParameterSpec("robot", robot_models.G1, f"robot scene to simulate, one of: {', '.join(robot_models.ROBOT_NAMES)}",
@@ -81,7 +81,7 @@ class SimNode(LifecycleNode):
         self.plugins: InLoopPlugins | None = None
         self._publications: Publications | None = None
         self._stepper: Stepper | None = None
-        self._lock = threading.RLock()
+        self._lock = HandOffLock()
         self._stop = threading.Event()
         self._wake = threading.Event()
         self._thread: threading.Thread | None = None
@@ -207,23 +207,22 @@ class SimNode(LifecycleNode):
 
     def _loop(self) -> None:
         assert self.sim is not None and self._stepper is not None
-        yielded_at = time.monotonic()
+        sim, stepper, pacer, lock = self.sim, self._stepper, self._pacer, self._lock
         while not self._stop.is_set() and self.context.ok():
             if self._paused:
                 self._wake.wait(0.1)
                 self._wake.clear()
-                self._pacer.reanchor()
+                pacer.reanchor()
                 continue
-            with self._lock:
-                self._stepper.advance()
-            self._pacer.pace(self.sim.time)
-            # Let a service or timer waiting for the lock have it: behind real time (or at rtf 0) the
-            # pacer does not sleep, and this thread would take the lock straight back, again and again.
-            # A yield costs about as much as a stretch of physics, so it comes every YIELD_EVERY_S.
-            now = time.monotonic()
-            if now - yielded_at >= YIELD_EVERY_S:
-                time.sleep(0)
-                yielded_at = now
+            lock.acquire()
+            try:
+                stepper.advance()
+            finally:
+                # Behind real time (or at rtf 0) the pacer does not sleep and this thread would take the
+                # lock straight back: a service or timer waiting for it gets it first (and nobody waiting
+                # costs nothing).
+                lock.hand_off(HAND_OFF_TIMEOUT_S)
+            pacer.pace(sim.time)
 
     def _publish_rtf(self) -> None:
         if self._thread is None or self._publications is None:
@@ -232,7 +231,7 @@ class SimNode(LifecycleNode):
 
     # ----- SimControl: for the services (each under the lock) ----------------------------
     @property
-    def lock(self) -> threading.RLock:
+    def lock(self) -> HandOffLock:
         """The lock every change of the simulation is made under (the physics thread steps under it)."""
         return self._lock
 

@@ -3,9 +3,10 @@
 Each stream has a rate in sim time and falls due on its own grid. Only ``/clock`` and ``/joint_states``
 (and any stream faster than both) set the stops the physics is stepped to; a slower stream rides along:
 it is published at the first stop at or after it falls due, stamped with that exact sim time, so its
-mean rate is unchanged and it adds no stop. ``/clock`` and ``/joint_states`` are serialized once and
-only their numbers are written at each publish; the other streams are built only while someone
-subscribes to them. The scene's fixed facts (``world -> odom``, the G1's ``/map``) go out once, latched.
+mean rate is unchanged and it adds no stop (the stops do not depend on who subscribes). ``/clock`` and
+``/joint_states`` are serialized once and only their numbers are written at each publish; every stream
+but ``/clock`` is built and published only while someone subscribes to it (no writer keeps samples for
+late readers). The scene's fixed facts (``world -> odom``, the G1's ``/map``) go out once, latched.
 """
 
 from __future__ import annotations
@@ -80,6 +81,7 @@ class Publications:
         self._periods: dict[str, float] = {}
         self._stops: tuple[str, ...] = ()
         self._schedule = _Schedule()
+        self._next_stop = 0.0  # the earliest of the stop streams' due times [s]
         self._clock_pub = node.create_publisher(Clock, CLOCK_TOPIC, STREAMS)
         self._joint_pub = node.create_publisher(JointState, JOINT_STATES_TOPIC, STREAMS)
         self._odom_pub = node.create_publisher(Odometry, ODOM_TOPIC, RELIABLE)
@@ -128,15 +130,20 @@ class Publications:
         self._periods = {name: 1.0 / rate if rate > 0 else math.inf for name, rate in rates.items()}
         fastest = min(self._periods[name] for name in STOP_STREAMS)
         self._stops = tuple(name for name, p in self._periods.items() if name in STOP_STREAMS or p < fastest)
+        self._update_next_stop()
 
     def next_stop(self) -> float:
         """Sim time [s] of the next publication that stepping must stop for."""
+        return self._next_stop
+
+    def _update_next_stop(self) -> None:
         schedule = self._schedule
-        return min(getattr(schedule, name) for name in self._stops)
+        self._next_stop = min((getattr(schedule, name) for name in self._stops), default=math.inf)
 
     def restart(self) -> None:
         """Every stream falls due again from t = 0 (sim time was reset)."""
         self._schedule = _Schedule()
+        self._update_next_stop()
 
     # ----- publishing ----------------------------------------------------------------------
     def publish_due(self, now: float, force: bool = False) -> None:
@@ -147,6 +154,9 @@ class Publications:
         eps = 1e-9
         # A stream is published when due or forced; only a due one moves on along its grid (a forced
         # publication off the grid, e.g. at a reset, leaves the grid alone).
+        # Every stream but /clock is built and published only while someone subscribes. /clock always is:
+        # gated on the writer's subscriber count too, a lock-stepped walk_2m's lowest base height differed
+        # run to run (tests/scenarios/test_determinism.py), which gating /joint_states alone does not do.
         due = now + eps >= schedule.clock
         if force or due:
             if self._clock_template is not None:
@@ -158,11 +168,10 @@ class Publications:
                 schedule.clock = next_due(schedule.clock, periods["clock"], now)
         due = now + eps >= schedule.joint_states
         if force or due:
-            self._publish_joint_states(now)
+            if self._joint_pub.get_subscription_count() > 0:
+                self._publish_joint_states(now)
             if due:
                 schedule.joint_states = next_due(schedule.joint_states, periods["joint_states"], now)
-        # The streams below are built and published only while someone subscribes; /clock and
-        # /joint_states are always published.
         due = now + eps >= schedule.odom
         if force or due:
             self._publish_odom(now)
@@ -181,6 +190,7 @@ class Publications:
             self._publish_state(now)
             if due:
                 schedule.state = next_due(schedule.state, periods["state"], now)
+        self._update_next_stop()
 
     def publish_rtf(self, factor: float) -> None:
         """``~/real_time_factor``: sim seconds per wall second."""

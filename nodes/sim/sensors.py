@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import functools
 import math
-import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, TypeVar
@@ -35,6 +34,7 @@ from sensor_msgs.msg import BatteryState, Imu
 from tf2_msgs.msg import TFMessage
 
 from nodes.runtime.parameters import ParameterSpec, declare
+from nodes.sim.handoff import HandOffLock
 from nodes.sim.publication import next_due
 from nodes.sim.serialized import (
     BatteryStateTemplate,
@@ -110,7 +110,7 @@ class SensorStreams:
         battery: the battery drained in the control step (None for a robot without one).
     """
 
-    def __init__(self, node: Node, sim: Simulation, lock: threading.RLock, battery: Battery | None) -> None:
+    def __init__(self, node: Node, sim: Simulation, lock: HandOffLock, battery: Battery | None) -> None:
         self._node = node
         self._sim = sim
         self._lock = lock

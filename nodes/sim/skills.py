@@ -10,7 +10,6 @@ a server that hears nothing for much longer knows /sim has stopped or died.
 from __future__ import annotations
 
 import collections
-import threading
 
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
@@ -18,6 +17,7 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message, serialize_message
 
 from nodes.servers.protocol import BINDINGS, SkillContext, fill_message, result_message
+from nodes.sim.handoff import HandOffLock
 from sim_bridge import Simulation
 from sim_bridge.errors import InvalidGoalError
 from sim_bridge.skills import SkillHost, SkillRun, SkillStatus
@@ -41,7 +41,7 @@ class SkillBridge:
         context: what the bindings build skills from.
     """
 
-    def __init__(self, node: Node, sim: Simulation, lock: threading.RLock, hosts: dict[str, SkillHost],
+    def __init__(self, node: Node, sim: Simulation, lock: HandOffLock, hosts: dict[str, SkillHost],
                  context: SkillContext) -> None:
         self._node = node
         self._sim = sim

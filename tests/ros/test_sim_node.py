@@ -188,6 +188,22 @@ def test_pause_step_and_resume(client, g1):
     assert not not_paused.success and "pause" in not_paused.message
 
 
+def test_services_are_answered_while_the_sim_runs_as_fast_as_possible(client, g1):
+    """Unpaced, the physics thread takes its lock back after every stretch: a waiting service is handed it."""
+    assert client.set_parameter("sim", "real_time_factor", 0.0)[0]
+    try:
+        for _ in range(5):
+            reset = client.call(Reset, "/sim/reset", Reset.Request())
+            assert reset.success, reset.message
+            assert client.call(Trigger, "/sim/pause", Trigger.Request()).success
+            stepped = client.call(Step, "/sim/step", Step.Request(steps=1))
+            assert stepped.success, stepped.message
+            assert stepped.sim_time > reset.sim_time
+            assert client.call(Trigger, "/sim/resume", Trigger.Request()).success
+    finally:
+        assert client.set_parameter("sim", "real_time_factor", 1.0)[0]
+
+
 def test_unknown_robot_is_refused_with_the_known_names():
     with running(["sim_node", "--ros-args", "-p", "robot:=atlas"]) as process:
         code = process.process.wait(timeout=STARTUP_S)
