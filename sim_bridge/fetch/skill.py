@@ -413,7 +413,11 @@ class FetchSkill:
         self._center = np.array([x, y, top_z + float(plan.half_size[2]) + self.config.ready_rise_m])
         self._center += self.config.ready_forward_m * forward
         self._center_goal = self._center.copy()
-        self._depth = [-self.config.ready_clearance_m] * 2
+        # A box turned against the stance sticks a corner out toward one palm: open both by it.
+        turn = abs(wrap(float(yaw_of(data.xquat[plan.body])) - yaw))
+        turn = min(turn, math.pi - turn)
+        corner = float(plan.half_size[0]) * math.sin(turn) - float(plan.half_size[1]) * (1.0 - math.cos(turn))
+        self._depth = [-(self.config.ready_clearance_m + corner)] * 2
         self._set_grip_speed(self.config.reach_speed_mps)
 
     def _set_grip_speed(self, speed: float) -> None:
