@@ -172,6 +172,35 @@ def test_a_box_turned_past_the_stances_most_gets_it_and_the_palms_turn_the_rest(
         plan_stance(first, 1.02, 0.0, math.radians(50.0), config)
 
 
+def test_the_ready_palms_open_by_the_corner_of_a_box_turned_against_the_robot(robot):
+    # Raised ready beside a box turned against the robot's heading, the palms stand wide of its farthest corner, not
+    # only of its faces (a palm 7 cm wide of the faces met the corner of a box turned 12.5 degrees more than the
+    # stance and pushed it 15 cm off its spot: bench-fetch layout 19).
+    rig = FetchRig.of(robot)
+    adr = int(robot.model.joint("box").qposadr[0])
+    half = g1_tables.BOX.half_size
+    try:
+        for yaw_deg in (0.0, 12.5, -40.0):
+            yaw = math.radians(yaw_deg)
+            rig.sim.data.qpos[adr + 3:adr + 7] = [math.cos(yaw / 2.0), 0.0, 0.0, math.sin(yaw / 2.0)]
+            mujoco.mj_forward(rig.sim.model, rig.sim.data)
+            skill = rig.skill(FetchGoal("box", *PLACE))
+            skill.start(rig.sim.model, rig.sim.data)
+            assert skill.plan is not None
+            skill._ready_pose(rig.sim.data, skill.plan.pick_top_z)
+            turn = yaw - skill._base(rig.sim.data)[2]  # against the robot's heading now
+            corners = [(sx * half[0], sy * half[1]) for sx in (-1, 1) for sy in (-1, 1)]
+            widest = max(abs(math.sin(turn) * cx + math.cos(turn) * cy) for cx, cy in corners)  # across the robot
+            opening = -skill._depth[0] - skill.config.ready_clearance_m
+            assert skill._depth[0] == skill._depth[1]
+            assert opening == pytest.approx(widest - half[1], abs=1e-6), yaw_deg
+            if abs(yaw_deg) > 1.0:
+                assert opening > 0.01
+    finally:
+        mujoco.mj_resetDataKeyframe(rig.sim.model, rig.sim.data, rig.sim.model.key(robot.default_keyframe).id)
+        rig.sim.set_controller(Slot.LOCOMOTION, None)
+
+
 def test_a_stance_beside_a_table_leg_moves_sideways_away_from_it(robot):
     # A box near the first table's +y end, turned toward that end: facing its grip the left sole would stand on
     # the corner leg at (0.95, 0.55). The stance moves to the robot's right (toward the table's middle), along its
