@@ -3,10 +3,9 @@
 Each stream has a rate in sim time and falls due on its own grid. Only ``/clock`` and ``/joint_states``
 (and any stream faster than both) set the stops the physics is stepped to; a slower stream rides along:
 it is published at the first stop at or after it falls due, stamped with that exact sim time, so its
-mean rate is unchanged and it adds no stop (the stops do not depend on who subscribes). ``/clock`` and
-``/joint_states`` are serialized once and only their numbers are written at each publish; every stream
-but ``/clock`` is built and published only while someone subscribes to it (no writer keeps samples for
-late readers). The scene's fixed facts (``world -> odom``, the G1's ``/map``) go out once, latched.
+mean rate is unchanged and it adds no stop. ``/clock`` and ``/joint_states`` are serialized once and
+only their numbers are written at each publish; the other streams are built only while someone
+subscribes to them. The scene's fixed facts (``world -> odom``, the G1's ``/map``) go out once, latched.
 """
 
 from __future__ import annotations
@@ -154,9 +153,6 @@ class Publications:
         eps = 1e-9
         # A stream is published when due or forced; only a due one moves on along its grid (a forced
         # publication off the grid, e.g. at a reset, leaves the grid alone).
-        # Every stream but /clock is built and published only while someone subscribes. /clock always is:
-        # gated on the writer's subscriber count too, a lock-stepped walk_2m's lowest base height differed
-        # run to run (tests/scenarios/test_determinism.py), which gating /joint_states alone does not do.
         due = now + eps >= schedule.clock
         if force or due:
             if self._clock_template is not None:
@@ -168,10 +164,12 @@ class Publications:
                 schedule.clock = next_due(schedule.clock, periods["clock"], now)
         due = now + eps >= schedule.joint_states
         if force or due:
-            if self._joint_pub.get_subscription_count() > 0:
-                self._publish_joint_states(now)
+            self._publish_joint_states(now)
             if due:
                 schedule.joint_states = next_due(schedule.joint_states, periods["joint_states"], now)
+        # The streams below are built and published only while someone subscribes; /clock and
+        # /joint_states are always published (gated on the writer's subscriber count too, a lock-stepped
+        # walk_2m's lowest base height differed run to run in tests/scenarios/test_determinism.py).
         due = now + eps >= schedule.odom
         if force or due:
             self._publish_odom(now)
