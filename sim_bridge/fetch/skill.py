@@ -413,14 +413,9 @@ class FetchSkill:
         self._center = np.array([x, y, top_z + float(plan.half_size[2]) + self.config.ready_rise_m])
         self._center += self.config.ready_forward_m * forward
         self._center_goal = self._center.copy()
-        # A box turned against the heading (beyond the stance's 30 degrees the palms take the rest) sticks a corner
-        # out toward one palm: both open by it. Raised ready 7 cm wide of a box turned 12.5 degrees more than the
-        # stance, a palm met the corner (1.9 cm out) as the walk onto the stance drifted, and pushed the box 15 cm.
-        turn = abs(wrap(float(yaw_of(data.xquat[plan.body])) - yaw))
-        turn = min(turn, math.pi - turn)
-        hx, hy = float(plan.half_size[0]), float(plan.half_size[1])
-        corner = max(0.0, hx * math.sin(turn) - hy * (1.0 - math.cos(turn)))  # beyond the +-y faces [m]
-        self._depth = [-(self.config.ready_clearance_m + corner)] * 2
+        hx, hy = float(plan.half_size[0]), float(plan.half_size[1])  # a box turned against the heading: its corner
+        turn = math.asin(abs(math.sin(float(yaw_of(data.xquat[plan.body])) - yaw)))  # sticks out beyond its +-y faces
+        self._depth = [-(self.config.ready_clearance_m + max(0.0, hx * math.sin(turn) - hy * (1.0 - math.cos(turn))))] * 2
         self._set_grip_speed(self.config.reach_speed_mps)
 
     def _set_grip_speed(self, speed: float) -> None:
