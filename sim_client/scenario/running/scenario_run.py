@@ -35,6 +35,7 @@ from sim_client.scenario.running.report import RunResult, Verdict, build_report,
 from sim_client.scenario.running.sim_time import SERVICE_WALL_S, STARTUP_WALL_S, SimTime, StepFailure, call_service
 from sim_interfaces.msg import LocomotionState, ObjectStates
 from sim_interfaces.srv import Push, Reset
+from sim_ros.names import STREAMS
 from sim_ros.session import RESPONSE_QOS, RosSession, TopicRecorder, WaitTimeout
 
 CHUNK_S = 0.02  # sim time advanced between checks of conditions on measures [s]
@@ -58,11 +59,15 @@ class ScenarioRun:
         self.progress = Progress(stream, options.quiet)
         self.goals: dict[str, GoalHandle] = {}
         self.time = SimTime(session, self.lock_step, self.rtf, lambda: sum(1 for h in self.goals.values() if h.done))
-        self.odom = session.record(Odometry, "odom", keep=1_000_000)
-        self.joints = session.record(JointState, "joint_states", keep=1_000_000)
-        self.objects = session.record(ObjectStates, "objects", keep=1_000_000)
+        # Measures read every sample: a reader's history as deep as the writer's, so that a burst of a
+        # lock-stepped stride waiting behind a busy spin thread is not overwritten (with a depth of 10, a
+        # loaded machine lost a stand's lowest /odom sample: its base_height_min differed run to run).
+        self.odom = session.record(Odometry, "odom", qos=STREAMS, keep=1_000_000)
+        self.joints = session.record(JointState, "joint_states", qos=STREAMS, keep=1_000_000)
+        self.objects = session.record(ObjectStates, "objects", qos=STREAMS, keep=1_000_000)
         # commanded vs measured speed, for the speed plot only: a run without plots carries no extra traffic
-        self.locomotion = session.record(LocomotionState, "sim/locomotion_state", keep=1_000_000) if options.plots else None
+        self.locomotion = session.record(LocomotionState, "sim/locomotion_state", qos=STREAMS,
+                                         keep=1_000_000) if options.plots else None
         # /sim renders a camera only while it is watched: a run watches (and records) it only when asked.
         cameras = [camera.name for camera in robot_models.cameras_of(scenario.robot)]
         self.camera_name = cameras[0] if options.camera and cameras else ""
