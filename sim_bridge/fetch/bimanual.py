@@ -23,6 +23,7 @@ from sim_bridge.arm.poses import mat_to_quat, quat_to_mat
 from sim_bridge.arm.types import ArmStatus
 from sim_bridge.entities import descends
 from sim_bridge.errors import InvalidGoalError, UnknownNameError
+from sim_bridge.fetch.contacts import contacts_on, normal_force, solve_contact_forces
 from sim_bridge.state import Pose
 
 
@@ -118,30 +119,20 @@ def grip_forces(model: mujoco.MjModel, data: mujoco.MjData, palms: tuple[Palm, P
     Args:
         solve: the contacts are those of the current positions but the constraint forces are not yet
             solved for them (inside the control step, between ``mj_step1`` and ``mj_step2``): solve them
-            first (``mj_step2`` solves them again with the new controls).
+            first, when a hand touches the object (``mj_step2`` solves them again with the new controls).
     """
+    def side_of(other: int) -> int | None:
+        return next((side for side, palm in enumerate(palms) if other in palm.bodies), None)
+
+    touching = contacts_on(model, data, body, side_of)
+    if not touching:
+        return 0.0, 0.0
     if solve:
-        touching = any(body in (int(model.geom_bodyid[c.geom1]), int(model.geom_bodyid[c.geom2]))
-                       for c in data.contact[:data.ncon])
-        if not touching:
-            return 0.0, 0.0
-        mujoco.mj_fwdActuation(model, data)
-        mujoco.mj_fwdAcceleration(model, data)
-        mujoco.mj_fwdConstraint(model, data)
+        solve_contact_forces(model, data)
     totals = [0.0, 0.0]
     wrench = np.zeros(6)
-    for index in range(data.ncon):
-        contact = data.contact[index]
-        if contact.efc_address < 0:  # in the margin but not active: it carries no force
-            continue
-        first, second = int(model.geom_bodyid[contact.geom1]), int(model.geom_bodyid[contact.geom2])
-        if body not in (first, second):
-            continue
-        other = second if first == body else first
-        for side, palm in enumerate(palms):
-            if other in palm.bodies:
-                mujoco.mj_contactForce(model, data, index, wrench)
-                totals[side] += float(wrench[0])
+    for index, side in touching:
+        totals[side] += normal_force(model, data, index, wrench)
     return totals[0], totals[1]
 
 

@@ -25,6 +25,7 @@ from robot_models.hands import HandLayout
 from sim_bridge.arm.poses import mat_to_quat
 from sim_bridge.entities import descends
 from sim_bridge.errors import UnknownNameError
+from sim_bridge.fetch.contacts import contacts_on, normal_force, solve_contact_forces
 from sim_bridge.state import Pose
 
 PALM = "palm"  # the contacts of the hand's own body (not a finger's)
@@ -118,27 +119,18 @@ def finger_forces(model: mujoco.MjModel, data: mujoco.MjData, hand: Hand, body: 
 
     Args:
         solve: the contacts are those of the current positions but their forces are not solved yet (inside
-            the control step, between ``mj_step1`` and ``mj_step2``): solve them first.
+            the control step, between ``mj_step1`` and ``mj_step2``): solve them first, when the hand touches
+            the object (an object resting on the table alone needs no solve).
     """
     forces = dict.fromkeys([*hand.layout.fingers, PALM], 0.0)
-    touching = [i for i in range(data.ncon) if body in (int(model.geom_bodyid[data.contact[i].geom1]),
-                                                          int(model.geom_bodyid[data.contact[i].geom2]))]
+    touching = contacts_on(model, data, body, hand.finger_of_body.get)
     if not touching:
         return forces
     if solve:
-        mujoco.mj_fwdActuation(model, data)
-        mujoco.mj_fwdAcceleration(model, data)
-        mujoco.mj_fwdConstraint(model, data)
+        solve_contact_forces(model, data)
     wrench = np.zeros(6)
-    for index in touching:
-        contact = data.contact[index]
-        if contact.efc_address < 0:
-            continue
-        first, second = int(model.geom_bodyid[contact.geom1]), int(model.geom_bodyid[contact.geom2])
-        finger = hand.finger_of_body.get(second if first == body else first)
-        if finger is not None:
-            mujoco.mj_contactForce(model, data, index, wrench)
-            forces[finger] += float(wrench[0])
+    for index, finger in touching:
+        forces[finger] += normal_force(model, data, index, wrench)
     return forces
 
 

@@ -112,6 +112,21 @@ def test_a_long_course_is_followed_and_a_short_one_framed_once(course):
         assert renderer.view_at(0.0) == renderer.view_at(4.0) == renderer.view
 
 
+def test_a_long_run_plays_faster_to_last_at_most_the_longest_video_and_says_how_fast(tmp_path, course):
+    assert render.playback_speed(12.0) == 1.0
+    assert render.playback_speed(3 * render.MAX_VIDEO_S) == pytest.approx(3.0)
+    long_run = render.RecordedRun("long", "g1", "course", 0.0, 3 * render.MAX_VIDEO_S, walking_odom(),
+                                  ([], Series(np.zeros(0), np.zeros((0, 0)))), {})
+    shown = []
+    original = overlay.overlay_lines
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(overlay, "overlay_lines", lambda title, *rest: shown.append(title) or original(title, *rest))
+        frames = render.render_video(long_run, tmp_path / "long.mp4", fps=1, size=(64, 48), robot=course)
+    held = round(render.HOLD_END_S * 1)
+    assert frames == round(render.MAX_VIDEO_S) + 1 + held  # one per video second, the end itself, then held
+    assert set(shown) == {"long (3.0x)"}
+
+
 def test_the_overlay_says_the_time_and_each_goals_state():
     goal = navigate_goal(done=9.0)
     assert [line.text for line in overlay.overlay_lines("run", 0.0, 0.0, [])] == ["run   t =   0.00 s"]
