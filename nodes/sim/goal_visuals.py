@@ -1,8 +1,9 @@
 """What the running goals show a viewer: the planned path on ``/plan`` (nav_msgs/Path, Nav2's name) and
 ``/goal_markers`` (visualization_msgs/MarkerArray: the path as a line, goal poses as arrows, the planned
 footsteps as boxes, the cells the robot's centre keeps out of (obstacles grown by their clearance) as a
-faint red layer, targets as spheres), in the ``world`` frame (on /tf). Published when they change and
-cleared when the goals end; latched, so a viewer that connects later sees what runs now."""
+faint red layer, targets as spheres), in the ``world`` frame (on /tf). Published when a goal starts or ends
+(cleared when none runs), and when what a running goal shows changes, at most every ``CHANGE_PERIOD_S``;
+latched, so a viewer that connects later sees what runs now."""
 
 from __future__ import annotations
 
@@ -24,6 +25,10 @@ ARROW_SIZE_M = (0.4, 0.06, 0.06)  # length, shaft and head widths of a goal pose
 TARGET_DIAMETER_M = 0.05
 PATH_HEIGHT_M = 0.01  # just above the floor
 SOLE_SIZE_M = (0.2, 0.07, 0.01)  # a planned footstep drawn as a flat box of about a sole's size (orientation not drawn)
+# The shortest time between two publications for changes of the running goals' visuals [s of sim time]. A walk
+# re-plans its footsteps every step: built and published at every change, the markers (a keep-out layer of
+# thousands of cells) took 30% of /sim's CPU during a lock-stepped fetch (py-spy).
+CHANGE_PERIOD_S = 0.25
 
 
 class GoalVisualsPublisher:
@@ -33,15 +38,21 @@ class GoalVisualsPublisher:
         self._plan_pub = node.create_publisher(Path, PLAN_TOPIC, LATCHED)
         self._markers_pub = node.create_publisher(MarkerArray, GOAL_MARKERS_TOPIC, LATCHED)
         self._shown: dict[tuple[str, int], GoalVisuals] = {}
+        self._goals: set[tuple[str, int]] = set()  # the running goals when the visuals were last read
+        self._read_at = -math.inf  # sim time the visuals were last read [s]
 
     def update(self, runs: Iterable[SkillRun], now: float) -> None:
-        """Publish if what the running goals show differs from what was last published."""
+        """Publish if the running goals changed, or (read at most every ``CHANGE_PERIOD_S``) what they show."""
+        running = [run for run in runs if run.status is SkillStatus.RUNNING and run.skill is not None]
+        goals = {(run.resource, run.seq) for run in running}
+        if goals == self._goals and 0.0 <= now - self._read_at < CHANGE_PERIOD_S:  # (sim time may restart at 0)
+            return
+        self._goals, self._read_at = goals, now
         current = {}
-        for run in runs:
-            if run.status is SkillStatus.RUNNING and run.skill is not None:
-                visuals = visuals_of(run.skill)
-                if visuals is not None:
-                    current[(run.resource, run.seq)] = visuals
+        for run in running:
+            visuals = visuals_of(run.skill)
+            if visuals is not None:
+                current[(run.resource, run.seq)] = visuals
         if current == self._shown:
             return
         self._shown = current
