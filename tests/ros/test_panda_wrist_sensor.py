@@ -68,7 +68,10 @@ def test_after_calibration_the_wrist_reads_the_weight_of_the_box_it_carries(clie
         after = [t for t, stage in stamped if t > inside[0] and stage not in stages]
         end = after[0] if after else inside[-1]
         forces = [m.wrench.force.z for m in wrench.messages() if inside[0] <= seconds_of(m.header.stamp) < end]
-        assert len(forces) >= 10, f"{len(forces)} wrenches in stages {stages}"
+        # At least 5: their mean's noise (0.05 N / sqrt(5) = 0.022 N) is a seventh of the tolerances below. (The
+        # window starts at the stage's first feedback, which a free-running /sim sends at the end of a stretch:
+        # CI's short GRASP stage gave 9 samples where 10 were asked.)
+        assert len(forces) >= 5, f"{len(forces)} wrenches in stages {stages}"
         return float(np.mean(forces))
 
     weight = panda_constants.BOX_MASS * 9.81

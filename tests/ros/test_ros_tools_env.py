@@ -55,8 +55,18 @@ CLIENT = textwrap.dedent("""
             rclpy.spin_once(node, timeout_sec=0.1)
 
     spin_until(reset.service_is_ready, "/sim/reset")
+    # Sent again every 2 s until answered: the first request to a server that has just started can lose its
+    # response (the server's reply writer may not have matched this client yet); a reset twice is a reset.
     future = reset.call_async(Reset.Request())
-    spin_until(future.done, "the reset response")
+    sent_at = time.monotonic()
+
+    def answered():
+        global future, sent_at
+        if not future.done() and time.monotonic() - sent_at > 2.0:
+            future, sent_at = reset.call_async(Reset.Request()), time.monotonic()
+        return future.done()
+
+    spin_until(answered, "the reset response")
     spin_until(lambda: received, "a /tf message")
     spin_until(arm.server_is_ready, "the /move_arm action server")
     print(f"OK reset={future.result().success} tf_transforms={received[0]}")
