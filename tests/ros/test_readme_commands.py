@@ -34,7 +34,7 @@ from rcl_interfaces.srv import DescribeParameters, SetParameters
 from sim_client.scenario.model import schema
 from sim_client.scenario.running.sweep import parse_grid, points
 from sim_ros.processes import BIN, ChildProcess
-from sim_ros.session import WaitTimeout
+from sim_ros.session import RosSession, WaitTimeout
 from tests.ros.actions import ready_client, result, send, wait_feedback
 
 pytestmark = pytest.mark.slow
@@ -128,6 +128,7 @@ class Shell:
         self.client = client
         self.log_dir = log_dir
         self.nodes: ChildProcess | None = None
+        self.own_session: RosSession | None = None
         self.running_goal: Any = None
         self.count = 0
 
@@ -135,6 +136,21 @@ class Shell:
         if self.nodes is not None:
             self.nodes.stop(timeout=30.0)
             self.nodes = None
+        self._close_own_session()
+
+    def _close_own_session(self) -> None:
+        if self.own_session is not None:
+            self.own_session.close()
+            self.own_session = None
+
+    def _new_session(self) -> None:
+        """The commands after a start talk to its nodes through a client of their own, as a user's new
+        terminal would (each ``ros2`` command there is a new process): a client kept across the README's
+        bring-ups carries every earlier bring-up's discovery and subscriptions, and once got no answer at
+        all from a new bring-up's /pick_place for 90 s."""
+        self._close_own_session()
+        self.own_session = RosSession("readme_shell", use_sim_time=False)
+        self.client = self.own_session
 
     def run(self, command: str, following: str) -> None:
         handler = {
@@ -159,6 +175,7 @@ class Shell:
         nodes = self.nodes
         self.client.wait_for(lambda: "active: physics running" in nodes.output() or not nodes.alive(), READY_S,
                              f"{command!r} to bring /sim up")
+        self._new_session()
 
     def _require_nodes(self, command: str) -> None:
         last_output = self.nodes.output()[-2000:] if self.nodes is not None else ""
@@ -214,7 +231,10 @@ class Shell:
         self._require_nodes(command)
         _, _, _, topic, type_name = shlex.split(command)[:5]
         recorder = self.client.record(load_type(type_name), topic, keep=10)
-        self.client.wait_for(lambda: recorder.count > 0, READY_S, f"a message on {topic}")
+        try:
+            self.client.wait_for(lambda: recorder.count > 0, READY_S, f"a message on {topic}")
+        finally:
+            recorder.stop()  # the user's Ctrl-C: left subscribed, every later message would still be taken
 
     def send_goal(self, command: str, following: str) -> None:
         self._require_nodes(command)
