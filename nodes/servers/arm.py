@@ -8,7 +8,8 @@ relays and owns the parameters. One goal per arm: a new goal preempts the runnin
 from __future__ import annotations
 
 import sys
-from typing import Any
+import threading
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
@@ -25,13 +26,15 @@ from nodes.runtime.streams import OnDemandTopic
 from nodes.servers.actions import ARM_ACTIONS
 from nodes.servers.protocol import ARM_SETTINGS, arm_name
 from nodes.servers.server import end_goals_before_exit, skill_servers
-from sim_bridge.arm import ArmKinematics
 from sim_bridge.errors import InvalidGoalError, SimError
 from sim_bridge.frames import check_frame, to_world
 from sim_bridge.state import Pose
 from sim_interfaces.srv import ComputeIK
 from sim_ros.conversions import pose_from_msg
 from sim_ros.names import JOINT_STATES_TOPIC, ODOM_TOPIC
+
+if TYPE_CHECKING:
+    from sim_bridge.arm import ArmKinematics
 
 NODE_NAME = "arm"
 ACTIONS = ARM_ACTIONS  # skill -> the action that serves it
@@ -74,11 +77,15 @@ class ArmServer(Node):
         # Goals are validated and frames resolved on the light model (the scene's objects: goals may name
         # them); the IK runs on its own model, built from the robot with its visuals, which is let go.
         self.robot = robot_models.load(robot, scene or None, visuals=False)
+        self._robot_name, self._scene = robot, scene
         declare(self, (ParameterSpec("robot", robot, "robot whose arms are served", read_only=True),
                        ParameterSpec("scene", scene, "scene of /sim (its objects); empty = the robot's default", read_only=True),
                        *parameters(self.robot)))
-        self.kinematics = ArmKinematics(robot_models.load(robot, scene or None))
-        self.arms = tuple(self.kinematics.arms)
+        self.arms = tuple(self.robot.end_effector_sites)
+        # Built at the first IK query (it compiles the robot twice more: about half this node's start-up CPU
+        # and 90 MB), which most runs never send: the actions' IK runs inside /sim.
+        self._kinematics: ArmKinematics | None = None
+        self._kinematics_lock = threading.Lock()
         self._servers = skill_servers(self, self.robot, ACTIONS,
                                       self._settings, lambda: 1.0 / float(self.get_parameter("feedback_rate").value))
         group = ReentrantCallbackGroup()
@@ -92,6 +99,16 @@ class ArmServer(Node):
         return {name: float(self.get_parameter(name).value) for name in ARM_SETTINGS}
 
     # ----- IK query ----------------------------------------------------------------------
+    @property
+    def kinematics(self) -> ArmKinematics:
+        """The IK model and problems of the robot's arms, built at the first use."""
+        with self._kinematics_lock:
+            if self._kinematics is None:
+                from sim_bridge.arm import ArmKinematics  # imports mink: only a node that answers IK needs it
+
+                self._kinematics = ArmKinematics(robot_models.load(self._robot_name, self._scene or None))
+            return self._kinematics
+
     def _compute_ik(self, request: ComputeIK.Request, response: ComputeIK.Response) -> ComputeIK.Response:
         response.success = False
         try:
