@@ -71,7 +71,8 @@ class CameraNode(DeviceNode):
 
 def main(args: list[str] | None = None) -> int:
     """Console entry point: ``camera_node`` (asks /sim for its robot)."""
-    return spin_server(lambda robot, _scene, overrides: CameraNode(robot, parameter_overrides=overrides), NODE_NAME, args)
+    return spin_server(lambda robot, _scene, overrides: CameraNode(robot, parameter_overrides=overrides), NODE_NAME, args,
+                       events=True)
 
 
 if __name__ == "__main__":

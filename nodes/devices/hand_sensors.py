@@ -192,6 +192,8 @@ class HandSensorsNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Console entry point: ``hand_sensors`` (asks /sim for its robot)."""
+    # On ServerExecutor, not the events executor: /calibrate_hand_sensors awaits readings (an async callback
+    # that subscribes while it runs), which rclpy 7.1.6's events executor never resumed (the call went unanswered).
     return spin_server(lambda robot, _scene, overrides: HandSensorsNode(robot, parameter_overrides=overrides), NODE_NAME, args)
 
 

