@@ -20,6 +20,7 @@ import traceback
 from typing import Any, cast
 
 import rclpy.logging
+from rclpy.context import Context
 from rclpy.event_handler import EventHandler
 from rclpy.executors import (
     ConditionReachedException,
@@ -159,7 +160,7 @@ def drop_qos_event_handlers(node: Node) -> int:
     return dropped
 
 
-def events_executor() -> Executor:
+def events_executor(context: Context | None = None) -> Executor:
     """rclpy's C++ events executor (``rclpy.experimental``), for nodes with short callbacks and no actions.
 
     It takes each ready message from the middleware's events instead of rebuilding a wait set in Python on
@@ -168,7 +169,7 @@ def events_executor() -> Executor:
     """
     from rclpy.experimental import EventsExecutor  # imported here: rclpy's experimental package
 
-    return EventsExecutor()
+    return EventsExecutor(context=context)
 
 
 def spin_once_logging(executor: Executor, node: Node, timeout_sec: float = 0.2) -> None:
