@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -37,6 +38,8 @@ STATUS_READ_S = 1.0  # [s of wall time] the status topic is read at most this of
 CANCEL_KEEP_S = 10.0  # [s of wall time] a cancel request is kept this long (the live server answers in ms)
 TERMINAL = (GoalStatus.STATUS_SUCCEEDED, GoalStatus.STATUS_CANCELED, GoalStatus.STATUS_ABORTED)
 NO_GOAL = bytes(16)  # a cancel request's goal id that means "every goal" (with a stamp) or none
+RESEND_EVERY_S = 0.5  # [s of wall time] an answer rmw could not send (the client's reader not matched) is sent again
+RESEND_FOR_S = 30.0  # [s of wall time] ... for this long
 
 
 @dataclass
@@ -82,6 +85,8 @@ class ResultKeeper:
         self._send_now: dict[int, Callable[[Any, Any], None]] = {}  # id(service) -> rclpy's own send_response
         self._session = RosSession("bringup", use_sim_time=False, namespace=namespace)
         node = self._session.node
+        self._unsent: list[tuple[Service, Any, Any, float]] = []  # (service, response, header, first try [monotonic s])
+        node.create_timer(RESEND_EVERY_S, self._send_again)
         for executable, served in actions.items():
             self._watches[executable] = [self._watch(node, name, action_type) for name, action_type in served]
 
@@ -111,11 +116,32 @@ class ResultKeeper:
             cancels, watch.cancels = watch.cancels, []
             watch.status, watch.status_raw = {}, None
             for kept in results:
-                self._send_now[id(kept.service)](self._aborted(watch, watch.orphans[kept.goal]), kept.header)
+                self._send(kept.service, self._aborted(watch, watch.orphans[kept.goal]), kept.header)
             for kept in cancels:  # the dead server may have answered some already: a second answer is ignored
-                self._send_now[id(kept.service)](self._cancel_answer(watch, kept.request), kept.header)
+                self._send(kept.service, self._cancel_answer(watch, kept.request), kept.header)
             answered += len(results) + len(cancels)
         return answered
+
+    def _send(self, service: Service, response: Any, header: Any, first_s: float | None = None) -> None:
+        """Send an answer; one rmw could not send is sent again every RESEND_EVERY_S for RESEND_FOR_S.
+
+        rmw sends a response only once the service's response writer has matched the client's reader (it
+        waits 100 ms); otherwise rclpy drops it with a RuntimeWarning, "failed to send response (timeout)",
+        and the client waits for ever. Seen on a loaded machine: bringup answered a killed server's client,
+        which got nothing in 30 s. Sent again once matched, it arrives (only an unsent answer is repeated).
+        """
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            self._send_now[id(service)](response, header)
+        if any("failed to send response" in str(warning.message) for warning in caught):
+            first_s = time.monotonic() if first_s is None else first_s
+            if time.monotonic() - first_s < RESEND_FOR_S:
+                self._unsent.append((service, response, header, first_s))
+
+    def _send_again(self) -> None:
+        unsent, self._unsent = self._unsent, []
+        for service, response, header, first_s in unsent:
+            self._send(service, response, header, first_s)
 
     # ----- the services ----------------------------------------------------------------------
     def _watch(self, node: Node, name: str, action_type: Any) -> _ActionWatch:
@@ -136,12 +162,12 @@ class ResultKeeper:
     def _route_responses(self, service: Service) -> None:
         """rclpy sends whatever a service callback returns; here the callback's verdict decides: send it,
         or keep the request's header for later (the live server answers it)."""
-        send = self._send_now[id(service)] = service.send_response
+        self._send_now[id(service)] = service.send_response
 
         def send_response(response: Any, header: Any) -> None:
             keep = self._verdicts.pop(id(response), None)
             if keep is None:
-                send(response, header)
+                self._send(service, response, header)
                 return
             watch, goal, cancel = keep
             kept = _Kept(service, header, goal, time.monotonic(), cancel)
