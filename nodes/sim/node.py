@@ -28,6 +28,7 @@ from nodes.runtime.parameters import ParameterSpec, StartupError, declare, guard
 from nodes.runtime.startup import (
     StopRequest,
     bounded_cleanup,
+    destroy_node_fully,
     end_process,
     fail,
     help_requested,
@@ -191,7 +192,7 @@ class SimNode(LifecycleNode):
 
     def destroy(self) -> None:
         self._stop_thread()
-        self.destroy_node()
+        destroy_node_fully(self)
 
     # ----- the physics loop --------------------------------------------------------------
     def _run(self) -> None:

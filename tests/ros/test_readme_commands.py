@@ -128,7 +128,7 @@ class Shell:
         self.client = client
         self.log_dir = log_dir
         self.nodes: ChildProcess | None = None
-        self.own_session: RosSession | None = None
+        self.sessions: list[RosSession] = []  # one per start, all closed at the end (see close_sessions)
         self.running_goal: Any = None
         self.count = 0
 
@@ -136,21 +136,24 @@ class Shell:
         if self.nodes is not None:
             self.nodes.stop(timeout=30.0)
             self.nodes = None
-        self._close_own_session()
 
-    def _close_own_session(self) -> None:
-        if self.own_session is not None:
-            self.own_session.close()
-            self.own_session = None
+    def close_sessions(self) -> None:
+        """Close the sessions while the last bring-up still runs. A session closed right after its bring-up
+        stopped deleted its participant while Fast DDS removed the bring-up's: that can deadlock
+        (eProsima/Fast-DDS#6502, see the README's Known limits); a fresh-clone run hung two workers so."""
+        while self.sessions:
+            self.sessions.pop().close()
 
     def _new_session(self) -> None:
         """The commands after a start talk to its nodes through a client of their own, as a user's new
         terminal would (each ``ros2`` command there is a new process): a client kept across the README's
         bring-ups carries every earlier bring-up's discovery and subscriptions, and once got no answer at
-        all from a new bring-up's /pick_place for 90 s."""
-        self._close_own_session()
-        self.own_session = RosSession("readme_shell", use_sim_time=False)
-        self.client = self.own_session
+        all from a new bring-up's /pick_place for 90 s. The earlier ones stay open, idle (their recorders
+        stopped), until the end."""
+        for recorder in self.client.recorders:
+            recorder.stop()
+        self.sessions.append(RosSession("readme_shell", use_sim_time=False))
+        self.client = self.sessions[-1]
 
     def run(self, command: str, following: str) -> None:
         handler = {
@@ -325,4 +328,5 @@ def test_the_readme_commands_run_in_order(client, tmp_path):
                 shell.finish_running()
         shell.finish_running()
     finally:
+        shell.close_sessions()
         shell.stop()
