@@ -155,6 +155,7 @@ def main(argv: list[str] | None = None) -> int:
                 if stop.wait(options.respawn_delay):
                     return 0
                 restarts[index] = restarts.get(index, 0) + 1
+                keeper.server_restarting(child.args[0])
                 note = " (it starts from its keyframe)" if child.args[0] == "sim_node" else ""
                 print(f"bringup: restarting {child.args[0]}{note}, restart {restarts[index]} of {options.respawn_limit}",
                       file=sys.stderr, flush=True)

@@ -12,7 +12,9 @@ status topic says the goal ended (the real server answered it), and each cancel 
 :data:`CANCEL_KEEP_S`. When bringup sees the server's process die, the keeper answers every request
 it keeps for a goal that had not ended: ABORTED with ``SIM_FAULT`` and a message naming the dead
 server; a cancel gets ``ERROR_GOAL_TERMINATED``. Later requests about those goals are answered the
-same way at once. The robot itself stops when its server goes silent (the skill in ``/sim`` ends).
+same way at once, and so is a request about a goal no status listed while no server runs (from the death
+until bringup starts the server again: the goal can only be the dead server's). The robot itself
+stops when its server goes silent (the skill in ``/sim`` ends).
 """
 
 from __future__ import annotations
@@ -65,6 +67,7 @@ class _ActionWatch:
     status_raw: bytes | None = None  # the latest status message, serialized, not yet read into ``status``
     status_read_s: float = -math.inf  # [s, monotonic] when ``status`` was last read from it
     orphans: dict[bytes, str] = field(default_factory=dict)  # goals whose server died -> why
+    dead_why: str = ""  # while its server is dead and not yet restarted: why (else "")
 
 
 class ResultKeeper:
@@ -100,6 +103,14 @@ class ResultKeeper:
             return 0
         return self._session.in_executor(lambda: self._answer_orphans(executable, code), what="the orphans' answers")
 
+    def server_restarting(self, executable: str) -> None:
+        """bringup starts ``executable`` again: from now on a goal this keeper never saw may be the new server's."""
+        def alive_again() -> None:
+            for watch in self._watches.get(executable, []):
+                watch.dead_why = ""
+
+        self._session.in_executor(alive_again, what="the restart")
+
     def _answer_orphans(self, executable: str, code: int | None) -> int:
         answered = 0
         for watch in self._watches[executable]:
@@ -107,6 +118,7 @@ class ResultKeeper:
                    "ended; bringup restarts it: send the goal again")
             self._read_status(watch)  # the server's last word, however recent
             self._prune(watch)
+            watch.dead_why = why
             for goal, status in watch.status.items():
                 if status not in TERMINAL:
                     watch.orphans[goal] = why
@@ -179,6 +191,10 @@ class ResultKeeper:
         goal = bytes(request.goal_id.uuid)
         self._prune(watch)
         why = watch.orphans.get(goal)
+        if why is None and watch.dead_why and watch.status.get(goal) not in TERMINAL:
+            # No server runs: the goal can only be the dead one's, though no status listed it (a server killed
+            # seconds after it started, before this keeper had its status; seen in a fresh-clone run).
+            why = watch.orphans[goal] = watch.dead_why
         if why is not None:
             return self._aborted(watch, why, response)
         self._verdicts[id(response)] = (watch, goal, None)
@@ -187,6 +203,8 @@ class ResultKeeper:
     def _on_cancel(self, watch: _ActionWatch, request: Any, response: Any) -> Any:
         goal = bytes(request.goal_info.goal_id.uuid)
         self._prune(watch)
+        if goal not in watch.orphans and watch.dead_why and goal != NO_GOAL and watch.status.get(goal) not in TERMINAL:
+            watch.orphans[goal] = watch.dead_why  # no server runs: the dead one's goal (see _on_result)
         if goal in watch.orphans:
             return self._cancel_answer(watch, request, response)
         self._verdicts[id(response)] = (watch, goal, request)
