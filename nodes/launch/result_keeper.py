@@ -187,14 +187,18 @@ class ResultKeeper:
 
         service.send_response = send_response  # type: ignore[method-assign]  # this instance's own route
 
+    @staticmethod
+    def _orphan_if_dead(watch: _ActionWatch, goal: bytes) -> None:
+        """While no server runs, a goal no status listed as ended can only be the dead server's (a server killed
+        seconds after it started, before this keeper had its status; seen in a fresh-clone run)."""
+        if watch.dead_why and goal != NO_GOAL and goal not in watch.orphans and watch.status.get(goal) not in TERMINAL:
+            watch.orphans[goal] = watch.dead_why
+
     def _on_result(self, watch: _ActionWatch, request: Any, response: Any) -> Any:
         goal = bytes(request.goal_id.uuid)
         self._prune(watch)
+        self._orphan_if_dead(watch, goal)
         why = watch.orphans.get(goal)
-        if why is None and watch.dead_why and watch.status.get(goal) not in TERMINAL:
-            # No server runs: the goal can only be the dead one's, though no status listed it (a server killed
-            # seconds after it started, before this keeper had its status; seen in a fresh-clone run).
-            why = watch.orphans[goal] = watch.dead_why
         if why is not None:
             return self._aborted(watch, why, response)
         self._verdicts[id(response)] = (watch, goal, None)
@@ -203,8 +207,7 @@ class ResultKeeper:
     def _on_cancel(self, watch: _ActionWatch, request: Any, response: Any) -> Any:
         goal = bytes(request.goal_info.goal_id.uuid)
         self._prune(watch)
-        if goal not in watch.orphans and watch.dead_why and goal != NO_GOAL and watch.status.get(goal) not in TERMINAL:
-            watch.orphans[goal] = watch.dead_why  # no server runs: the dead one's goal (see _on_result)
+        self._orphan_if_dead(watch, goal)
         if goal in watch.orphans:
             return self._cancel_answer(watch, request, response)
         self._verdicts[id(response)] = (watch, goal, request)

@@ -165,9 +165,8 @@ def destroy_node_fully(node: Node) -> None:
     the process's DDS participant) alive. A process that then ends without finalization (:func:`end_process`)
     never tells the others it left: they drop it only when its lease runs out, 20 s later (measured: ``/arm``
     stopped with Ctrl-C stayed in every other node's graph for 20.0 s, ``/sim`` too with its lifecycle state
-    machine; ``/power`` left at once), and a
-    participant removed for a lease that ran out is what can deadlock another process's Fast DDS
-    (eProsima/Fast-DDS#6502, see sim_ros/fastdds_profiles.xml).
+    machine; ``/power`` left at once), and a participant removed for a lease that ran out is what can
+    deadlock another process's Fast DDS (eProsima/Fast-DDS#6502, see sim_ros/fastdds_profiles.xml).
     """
     for waitable in list(node.waitables):
         destroy = getattr(waitable, "destroy", None)
