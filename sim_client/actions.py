@@ -26,6 +26,7 @@ from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 from rclpy.action import ActionClient
 from rclpy.action.client import ClientGoalHandle
 from rclpy.parameter import Parameter, parameter_value_to_python
+from rclpy.qos import QoSProfile
 from unique_identifier_msgs.msg import UUID
 
 from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, Walk
@@ -181,6 +182,9 @@ class GoalHandle(Generic[FeedbackT, ResultT]):
         )
 
 
+# rclpy's default keeps 10 feedback messages: a client held up for a moment (a free-running sim sends
+# feedback several times faster than real time) lost some. The servers publish with depth 100 too.
+FEEDBACK_QOS = QoSProfile(depth=100)
 PROBE_ATTEMPT_S = 2.0  # [s of wall time] a probe request not answered in this long is sent again
 
 
@@ -224,7 +228,8 @@ class SimActionClient(Generic[GoalT, FeedbackT, ResultT]):
         self.session = session
         self.name = name or self.default_name
         self._client = ActionClient(session.node, self.action_type, self.name, goal_service_qos_profile=RESPONSE_QOS,
-                                    result_service_qos_profile=RESPONSE_QOS, cancel_service_qos_profile=RESPONSE_QOS)
+                                    result_service_qos_profile=RESPONSE_QOS, cancel_service_qos_profile=RESPONSE_QOS,
+                                    feedback_sub_qos_profile=FEEDBACK_QOS)
         self.error_names = error_code_names(self.action_type.Result)
         self._answering = False  # the server has answered this client's probes (wait_for_server)
 

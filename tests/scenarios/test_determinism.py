@@ -3,9 +3,14 @@
 Each scenario runs twice, each time with its own freshly started nodes, as fast as possible (and one
 paced at real-time factor 2: the same numbers at any pace); and a short one runs twice on one
 bring-up after a run that changed parameters and left a goal running, as on fresh nodes. Every number of the two
-reports (the goals' results and last feedback, the sim times at which they were sent, the measured
-values of the expectations) must agree to 1e-6. Not compared: the sim time at which the runner *saw*
-a goal end, which is quantized by its stepping (the goal's own end, in its result, is compared).
+reports (the goals' results, the sim times at which they were sent, the measured values of the
+expectations) must agree to 1e-6, and so must every feedback message both runs received for the same
+instant of the goal (its ``elapsed``). Not compared: the sim time at which the runner *saw* a goal end,
+which is quantized by its stepping (the goal's own end, in its result, is compared); and how many
+feedback messages arrived. That count is delivery, not physics: feedback and the result travel on
+different DDS readers, and rclpy drops feedback that arrives after the result (a free-running sim sent
+two fresh clones' runs 85 and 86 messages of identical content); so at least 90% of either run's
+feedback must be matched in the other.
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ import pytest
 from sim_client.scenario.model import schema
 from sim_client.scenario.running.bringups import Bringups
 from sim_client.scenario.running.options import RunOptions
+from sim_client.scenario.running.report import msg_to_dict
 from sim_client.scenario.running.runner import run
 
 TOLERANCE = 1e-6
@@ -43,23 +49,54 @@ def _numbers(value: Any, path: str = "") -> dict[str, float]:
 
 
 def _outcome_numbers(report: dict[str, Any]) -> dict[str, float]:
-    goals = {goal_id: {k: v for k, v in goal.items() if k in ("result", "last_feedback", "sent_at",
-                                                               "feedback_count", "error_code")}
+    goals = {goal_id: {k: v for k, v in goal.items() if k in ("result", "sent_at", "error_code")}
              for goal_id, goal in report["goals"].items()}
     measured = {e["name"]: e["measured"] for e in report["expectations"]}
     return _numbers({"goals": goals, "measured": measured})
+
+
+def _feedback_by_instant(samples: list[Any]) -> dict[tuple[int, int, int], dict[str, float]]:
+    """A goal's feedback keyed by the goal's own time in it (``elapsed``, or Nav2's ``navigation_time``) [s, ns]."""
+    keyed: dict[tuple[int, int, int], dict[str, float]] = {}
+    for sample in samples:
+        content = msg_to_dict(sample.feedback)
+        instant = content.get("elapsed", content.get("navigation_time"))
+        assert instant is not None, content
+        repeat = 0
+        while (instant["sec"], instant["nanosec"], repeat) in keyed:  # two messages of one instant (a milestone)
+            repeat += 1
+        keyed[(instant["sec"], instant["nanosec"], repeat)] = _numbers(content)
+    return keyed
+
+
+def _feedback_differences(first: dict[str, list[Any]], second: dict[str, list[Any]]) -> list[str]:
+    assert first.keys() == second.keys()
+    problems = []
+    for goal_id in first:
+        one, other = _feedback_by_instant(first[goal_id]), _feedback_by_instant(second[goal_id])
+        common = one.keys() & other.keys()
+        if len(common) < 0.9 * max(len(one), len(other)):
+            problems.append(f"{goal_id}: only {len(common)} feedback instants in common of {len(one)} and {len(other)}")
+        for instant in sorted(common):
+            differ = {key: (value, other[instant].get(key)) for key, value in one[instant].items()
+                      if not (math.isnan(value) and math.isnan(other[instant].get(key, math.nan)))
+                      and abs(value - other[instant].get(key, math.inf)) > TOLERANCE}
+            if differ:
+                problems.append(f"{goal_id} feedback at {instant}: {differ}")
+    return problems
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize(("name", "rtf"), [("walk_2m", 0.0), ("navigate_around_obstacle", 0.0), ("pick_place_box", 0.0),
                                           ("walk_2m", 2.0)])
 def test_a_scenario_run_twice_gives_the_same_numbers(tmp_path: pathlib.Path, name: str, rtf: float) -> None:
-    reports = []
+    reports, feedback = [], []
     for attempt in range(2):
         options = RunOptions(out=tmp_path / str(attempt), quiet=True, rtf=rtf)
         result: Any = run(schema.load(schema.find(name)), options, stream=io.StringIO())
         assert result.passed, result.report
         reports.append(result.report)
+        feedback.append(result.feedback)
     # The scenario starts at the same sim time, however long the recordings took to be matched (on a
     # loaded machine that once shifted the start, and the publication grid under the run, by 30 ms).
     assert reports[0]["started_at_sim_s"] == reports[1]["started_at_sim_s"]
@@ -69,6 +106,9 @@ def test_a_scenario_run_twice_gives_the_same_numbers(tmp_path: pathlib.Path, nam
     differ = {key: (first[key], second[key]) for key in first
               if not (math.isnan(first[key]) and math.isnan(second[key])) and abs(first[key] - second[key]) > TOLERANCE}
     assert not differ, f"{name} differs between two runs: {differ}"
+    assert sum(len(samples) for samples in feedback[0].values()) >= 5, feedback[0]  # the goals gave feedback
+    problems = _feedback_differences(*feedback)
+    assert not problems, f"{name}'s feedback differs between two runs: {problems}"
 
 
 # A short walk at the default pace (walking_speed), judged on /odom (its publication grid) and the parameter.
@@ -111,12 +151,14 @@ expect:
 
 
 def _report_without_wall_times(report: dict[str, Any]) -> dict[str, Any]:
-    """A report without what may differ between identical runs: wall times and stamps, artifact paths, and the
-    sim time at which the runner saw a goal end (quantized by its stepping; the goal's own end is in its result)."""
+    """A report without what may differ between identical runs: wall times and stamps, artifact paths, the
+    sim time at which the runner saw a goal end (quantized by its stepping; the goal's own end is in its result),
+    and how much feedback arrived (delivery; the feedback itself is compared by its instants)."""
     kept = {key: value for key, value in report.items()
             if key not in ("started", "startup_wall_s", "wall_time_s", "wall_per_sim", "artifacts", "warnings")}
     kept["marks"] = {name: t for name, t in report["marks"].items() if not name.endswith(".done")}
-    kept["goals"] = {goal_id: {k: v for k, v in goal.items() if k != "done_at"} for goal_id, goal in report["goals"].items()}
+    skipped = ("done_at", "feedback_count", "last_feedback")
+    kept["goals"] = {goal_id: {k: v for k, v in goal.items() if k not in skipped} for goal_id, goal in report["goals"].items()}
     return kept
 
 
@@ -143,5 +185,8 @@ def test_runs_on_one_bringup_give_the_report_of_a_run_on_fresh_nodes(tmp_path: p
         assert other.keys() == numbers[0].keys()
         differ = {key: (numbers[0][key], other[key]) for key in other if abs(numbers[0][key] - other[key]) > TOLERANCE}
         assert not differ, f"{label} differs from the run on fresh nodes: {differ}"
+    for result in shared[1:]:
+        problems = _feedback_differences(fresh.feedback, result.feedback)
+        assert not problems, f"a run on a reused bring-up has other feedback than on fresh nodes: {problems}"
     whole = [_report_without_wall_times(report) for report in reports]
     assert whole[1] == whole[0] and whole[2] == whole[0]

@@ -11,7 +11,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from sim_client.actions import GoalHandle
+from sim_client.actions import FeedbackSample, GoalHandle
 from sim_client.scenario.model.conditions import Comparison
 from sim_client.scenario.model.measures import Recorded
 from sim_client.scenario.model.schema import Expectation, Scenario
@@ -60,6 +60,8 @@ class RunResult:
     folder: pathlib.Path
     report: dict[str, Any] = field(default_factory=dict)
     startup_time: float = 0.0  # [s] wall time to find the nodes ready and reset (process start-up, discovery)
+    # Every goal's feedback as this client received it, in order (the report keeps its count and the last one).
+    feedback: dict[str, list[FeedbackSample]] = field(default_factory=dict)
 
 
 def _fmt(value: Any) -> str:

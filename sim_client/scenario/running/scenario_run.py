@@ -371,7 +371,8 @@ class ScenarioRun:
         for failure in self.failures:
             self.progress.say(f"  FAIL  {failure}")
         result = RunResult(scenario.name, passed, verdicts, list(self.failures), run_wall, sim, self.folder,
-                           startup_time=run_wall0 - self._wall0)
+                           startup_time=run_wall0 - self._wall0,
+                           feedback={goal_id: handle.feedback_history for goal_id, handle in self.goals.items()})
         result.report = build_report(self, result)
         return result
 
