@@ -30,9 +30,11 @@ demo: setup
 
 # Two workers, one test file each at a time (a file's bring-up stays in its worker), the longest files
 # first (tests/conftest.py orders them; xdist keeps that order); each worker has a ROS domain of its own.
-# TEST_WORKERS=0 runs everything in one process.
+# TEST_WORKERS=0 runs everything in one process. A worker that crashes (a test hung past the watchdog, whose
+# stacks the summary prints) ends the run: a replaced worker once left xdist's controller waiting for ever.
 TEST_WORKERS ?= 2
-PYTEST_PARALLEL := $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder)
+PYTEST_PARALLEL := $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder \
+	--max-worker-restart 0)
 
 # The lint and type gate (configured in pyproject.toml); `make test` runs it first and stops when it fails.
 # Its tools come from requirements.txt with the set-up; mypy checks against the installed project.

@@ -18,10 +18,14 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import faulthandler  # noqa: E402  (after the environment above, which must come first)
+import pathlib  # noqa: E402
+import shutil  # noqa: E402
+import tempfile  # noqa: E402
 
 import pytest  # noqa: E402
 
-TEST_WATCHDOG_S = 900.0  # [s] wall: a test (with its set-up and tear-down) that takes longer is a hung test
+HANG_DIR_VARIABLE = "SIM_TEST_HANG_DIR"  # the folder where a hung test's stacks are written (workers inherit it)
+TEST_WATCHDOG_S = float(os.environ.get("SIM_TEST_WATCHDOG_S", "900"))  # [s] wall: a test (set-up to tear-down) longer is hung
 
 # The files that keep a worker busy longest, longest first (45 s to 8 min each, measured one at a time on a loaded
 # 2-core machine; the ten slowest tests are printed at the end of every run). `make test` hands whole files to its two workers in
@@ -50,16 +54,40 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     items.sort(key=lambda item: rank.get(item.nodeid.split("::", 1)[0], len(rank)))
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    """The controller (or a run without workers) makes the folder for hung tests' stacks, before workers start."""
+    if "PYTEST_XDIST_WORKER" not in os.environ:
+        os.environ[HANG_DIR_VARIABLE] = tempfile.mkdtemp(prefix="sim-test-hangs-")
+
+
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_protocol(item, nextitem):
-    """A hung test ends its worker with every thread's stack printed instead of holding the run until CI's limit.
+    """A hung test ends its worker with every thread's stack written out instead of holding the run until CI's limit.
 
     A Fast DDS deadlock can freeze a whole process with the GIL held (see sim_ros/fastdds_profiles.xml); a timer
     in Python could not fire then, faulthandler's watchdog thread needs no GIL. Armed from the test's set-up to its
-    tear-down (which may close a module's client).
+    tear-down (which may close a module's client). The stacks go to a file, not to stderr: a worker's stderr is
+    captured and lost with it. The run's summary prints them (:func:`pytest_terminal_summary`).
     """
-    faulthandler.dump_traceback_later(TEST_WATCHDOG_S, exit=True)
-    try:
-        yield
-    finally:
-        faulthandler.cancel_dump_traceback_later()
+    folder = pathlib.Path(os.environ.get(HANG_DIR_VARIABLE) or tempfile.gettempdir())
+    path = folder / f"{os.environ.get('PYTEST_XDIST_WORKER', 'main')}-{os.getpid()}.txt"
+    with open(path, "w") as stacks:
+        stacks.write(f"{item.nodeid} ran longer than {TEST_WATCHDOG_S:.0f} s; its worker was ended. Its threads:\n")
+        stacks.flush()
+        faulthandler.dump_traceback_later(TEST_WATCHDOG_S, exit=True, file=stacks)
+        try:
+            yield
+        finally:
+            faulthandler.cancel_dump_traceback_later()
+    path.unlink()
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus: int, config: pytest.Config) -> None:
+    """The stacks of every test the watchdog ended (the controller's summary), then the folder is removed."""
+    if "PYTEST_XDIST_WORKER" in os.environ or not os.environ.get(HANG_DIR_VARIABLE):
+        return
+    folder = pathlib.Path(os.environ[HANG_DIR_VARIABLE])
+    for path in sorted(folder.glob("*.txt")):
+        terminalreporter.section(f"hung test ({path.stem})", sep="=", red=True)
+        terminalreporter.write(path.read_text())
+    shutil.rmtree(folder, ignore_errors=True)
