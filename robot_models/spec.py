@@ -288,12 +288,16 @@ def compile_copy(spec: mujoco.MjSpec, visuals: bool = True) -> mujoco.MjModel:
     Args:
         visuals: keep the visual-only geoms (contype = conaffinity = 0) and the meshes only they use;
             without them the bodies, joints, masses, sites, actuators and keyframes are the same
-            (the G1's model: 0.1 MB instead of 85 MB, mostly its meshes' bounding volume trees).
+            (the G1's model: 0.1 MB instead of 85 MB, mostly its meshes' bounding volume trees). A model
+            with visuals is kept compiled on disk (:mod:`robot_models.model_cache`).
     """
     copy = spec.copy()
     if not visuals:
         copy.compiler.discardvisual = True
-    return copy.compile()
+        return copy.compile()  # milliseconds: no meshes to process
+    from robot_models.model_cache import compile_cached
+
+    return compile_cached(copy)  # the meshes' hulls and trees take most of a second: read from the cache
 
 
 def joint_limits_of(model: mujoco.MjModel, joints: tuple[str, ...]) -> dict[str, JointLimits]:
