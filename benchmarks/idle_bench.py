@@ -14,6 +14,10 @@ Next to them, the floor of any node on sim time: a bare rclpy node that only rec
 
 Figures are percent of one core; the median of ``--rounds`` windows is printed.
 
+First, the start-up: the wall time from starting ``bringup`` until every server answers, and the CPU
+time each process used until then (compiled models read from ``robot_models.model_cache`` where a
+run before wrote them; ``SIM_MODEL_CACHE=off`` compiles them).
+
 Then each process's memory, read once every server answers: resident (RSS, from
 ``/proc/<pid>/status``) and, where ``/proc/<pid>/smaps_rollup`` is readable, proportional (PSS:
 a shared library counts once, split among the processes that map it), summed over the robot's
@@ -148,11 +152,15 @@ except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
 
 def bench_robot(robot: str, seconds: float, rounds: int) -> None:
     expected = [command[0] for command in commands_for(parse_args(["--robot", robot]), [])]
-    bringup = ChildProcess(["bringup", "--robot", robot])
     floor = ChildProcess(["python", "-c", CLOCK_FLOOR])
     try:
         with RosSession(f"idle_bench_{robot}", use_sim_time=False) as session:
+            started = time.perf_counter()
+            bringup = ChildProcess(["bringup", "--robot", robot])
             wait_ready(session, robot)
+            ready_s = time.perf_counter() - started
+            at_ready = {name: cpu_seconds(pid) for name, pid in child_pids(bringup.process.pid).items()}
+            at_ready["bringup"] = cpu_seconds(bringup.process.pid)
             time.sleep(2.0)  # let start-up transients (discovery, first messages) pass before measuring
             nodes = child_pids(bringup.process.pid)
             if sorted(nodes) != sorted(expected):
@@ -165,7 +173,12 @@ def bench_robot(robot: str, seconds: float, rounds: int) -> None:
             paused = median_table([cpu_percent(pids, seconds) for _ in range(rounds)])
     finally:
         floor.stop()
-        bringup.stop()
+        if "bringup" in locals():
+            bringup.stop()
+    print(f"  {robot:6s} start-up: {ready_s:.1f} s of wall time until every server answered; CPU until then: "
+          f"{sum(at_ready.values()):.1f} s in all", flush=True)
+    for name, cpu in at_ready.items():
+        print(f"  {robot:6s} {name:18s} start-up CPU: {cpu:5.2f} s", flush=True)
     for name in running:
         print(f"  {robot:6s} {name:18s} running: {running[name]:5.1f} %   paused: {paused[name]:5.1f} %", flush=True)
     print_memory(robot, memory)
