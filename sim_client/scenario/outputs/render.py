@@ -25,6 +25,7 @@ from sim_client.scenario.model.series import Series, joint_series, object_series
 from sim_client.scenario.outputs import goalview, overlay
 from sim_client.scenario.outputs.framing import View, box_corners, fit_view
 from sim_client.scenario.outputs.goalview import GoalView
+from sim_client.scenario.outputs.light_meshes import lighten_meshes
 
 FLOOR_SQUARE_M = 1.0  # side of one floor square [m]
 FLOOR_HALF_M = 50.0  # half side of the floor as drawn [m]
@@ -89,6 +90,7 @@ def render_spec(robot: RobotSpec, goals: Sequence[GoalView] = (),
                 planned: dict[str, list[tuple[float, float]]] | None = None) -> Any:
     """A copy of the robot's spec dressed for pictures; the robot's own spec is not changed.
 
+    The robot's meshes are simplified to what a video shows (:mod:`~sim_client.scenario.outputs.light_meshes`).
     Floor planes get a checker of ``FLOOR_SQUARE_M`` squares with lines, the lights become even
     directional light, a gradient sky is added, and every goal target and planned path gets
     geoms with ``contype = conaffinity = 0``.
@@ -97,6 +99,7 @@ def render_spec(robot: RobotSpec, goals: Sequence[GoalView] = (),
 
     spec = robot.mjspec.copy()
     spec.compiler.discardvisual = False  # keep the markers (geoms that collide with nothing) in the compiled model
+    lighten_meshes(spec)  # the G1: 76k triangles instead of 461k, drawn in half the time on a CPU renderer
     spec.add_texture(name="render_floor", type=mujoco.mjtTexture.mjTEXTURE_2D, builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
                      width=512, height=512, rgb1=[0.40, 0.44, 0.50], rgb2=[0.30, 0.33, 0.38],
                      mark=mujoco.mjtMark.mjMARK_EDGE, markrgb=[0.85, 0.87, 0.90])
