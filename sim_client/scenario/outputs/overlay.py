@@ -69,9 +69,17 @@ class TextPainter:
         self._font = ft2font.FT2Font(str(_font_path()))
         self.size_px = size_px
         self.pitch = round(1.4 * size_px)
+        self._drawn: dict[str, tuple[np.ndarray, int]] = {}  # text -> its glyphs: most lines repeat frame after frame
 
     def _glyphs(self, text: str) -> tuple[np.ndarray, int]:
         """Coverage (0..1, (h, w)) of ``text`` and the depth of its lowest pixel below the baseline [px]."""
+        if text not in self._drawn:
+            if len(self._drawn) >= 256:
+                self._drawn.clear()
+            self._drawn[text] = self._draw_glyphs(text)
+        return self._drawn[text]
+
+    def _draw_glyphs(self, text: str) -> tuple[np.ndarray, int]:
         font = self._font
         font.set_size(self.size_px, 72)
         font.set_text(text, 0.0, flags=self._ft2font.LoadFlags.FORCE_AUTOHINT)
