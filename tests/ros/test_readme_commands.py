@@ -126,9 +126,10 @@ class Shell:
 
     def __init__(self, client: Any, log_dir: pathlib.Path) -> None:
         self.client = client
+        self.first_client = client  # the module's: the commands before the first start
         self.log_dir = log_dir
         self.nodes: ChildProcess | None = None
-        self.sessions: list[RosSession] = []  # one per start, all closed at the end (see close_sessions)
+        self.sessions: list[RosSession] = []  # the current start's own (see close_session)
         self.running_goal: Any = None
         self.count = 0
 
@@ -137,19 +138,24 @@ class Shell:
             self.nodes.stop(timeout=30.0)
             self.nodes = None
 
-    def close_sessions(self) -> None:
-        """Close the sessions while the last bring-up still runs. A session closed right after its bring-up
-        stopped deleted its participant while Fast DDS removed the bring-up's: that can deadlock
-        (eProsima/Fast-DDS#6502, see the README's Known limits); a fresh-clone run hung two workers so."""
+    def close_session(self) -> None:
+        """Close the current start's session while its bring-up still runs, before the bring-up is stopped.
+
+        A participant deleted while Fast DDS removes another can deadlock (eProsima/Fast-DDS#6502, see the
+        README's Known limits). A session closed right after its bring-up stopped hung two workers so; all
+        sessions closed at the end, after six bring-ups had come and gone, hung one in ``destroy_publisher``
+        (a fresh clone of 9afadde). Closed before its bring-up stops, only one session lives at a time and it
+        is deleted while nothing it knows is leaving.
+        """
         while self.sessions:
             self.sessions.pop().close()
+        self.client = self.first_client
 
     def _new_session(self) -> None:
         """The commands after a start talk to its nodes through a client of their own, as a user's new
         terminal would (each ``ros2`` command there is a new process): a client kept across the README's
         bring-ups carries every earlier bring-up's discovery and subscriptions, and once got no answer at
-        all from a new bring-up's /pick_place for 90 s. The earlier ones stay open, idle (their recorders
-        stopped), until the end."""
+        all from a new bring-up's /pick_place for 90 s."""
         for recorder in self.client.recorders:
             recorder.stop()
         self.sessions.append(RosSession("readme_shell", use_sim_time=False))
@@ -166,6 +172,7 @@ class Shell:
         handler(command)
 
     def start(self, command: str) -> None:
+        self.close_session()
         self.stop()
         args = shlex.split(command)
         if args[:3] == ["ros2", "run", "sim"]:  # what ros2 run does: the package's executable in lib/sim
@@ -328,5 +335,5 @@ def test_the_readme_commands_run_in_order(client, tmp_path):
                 shell.finish_running()
         shell.finish_running()
     finally:
-        shell.close_sessions()
+        shell.close_session()
         shell.stop()
