@@ -26,11 +26,11 @@ from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 from rclpy.action import ActionClient
 from rclpy.action.client import ClientGoalHandle
 from rclpy.parameter import Parameter, parameter_value_to_python
-from rclpy.qos import QoSProfile
 from unique_identifier_msgs.msg import UUID
 
 from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, Walk
 from sim_interfaces.srv import Push
+from sim_ros.names import FEEDBACK_QOS
 from sim_ros.session import RESPONSE_QOS, RosSession, WaitTimeout
 
 GoalT = TypeVar("GoalT")
@@ -182,9 +182,6 @@ class GoalHandle(Generic[FeedbackT, ResultT]):
         )
 
 
-# rclpy's default keeps 10 feedback messages: a client held up for a moment (a free-running sim sends
-# feedback several times faster than real time) lost some. The servers publish with depth 100 too.
-FEEDBACK_QOS = QoSProfile(depth=100)
 PROBE_ATTEMPT_S = 2.0  # [s of wall time] a probe request not answered in this long is sent again
 
 

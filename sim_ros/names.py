@@ -72,3 +72,6 @@ STREAM_HISTORY_S = 10.0  # /clock and /joint_states a reliable writer keeps for 
 STREAM_HISTORY_DEPTH = int(STREAM_HISTORY_S * MAX_STREAM_RATE_HZ)  # 5000 samples: Fast DDS's default max_samples
 STREAMS = QoSProfile(depth=STREAM_HISTORY_DEPTH)  # /clock and /joint_states
 SKILL_QOS = QoSProfile(depth=100)  # the goal protocol's topics, both ways
+# An action's feedback, on the servers' publishers and the project's clients. rclpy's default keeps 10 messages:
+# a client held up for a moment lost some (a free-running sim sends feedback many times faster than real time).
+FEEDBACK_QOS = QoSProfile(depth=100)

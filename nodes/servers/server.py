@@ -35,7 +35,7 @@ from nodes.servers.protocol import BINDINGS, SkillBinding, result_codes
 from robot_models import RobotSpec
 from sim_bridge.errors import InvalidGoalError
 from sim_interfaces.msg import SkillCommand, SkillState
-from sim_ros.names import SKILL_COMMAND_TOPIC, SKILL_QOS, SKILL_STATE_TOPIC
+from sim_ros.names import FEEDBACK_QOS, SKILL_COMMAND_TOPIC, SKILL_QOS, SKILL_STATE_TOPIC
 from sim_ros.stamps import seconds_of
 
 ACK_TIMEOUT_S = 10.0  # wall seconds for /sim to report a goal it was sent
@@ -57,7 +57,6 @@ STARVED_GAP_S = 0.5
 SERVICE_QOS = QoSProfile(depth=1000)
 # Feedback of a fast (unpaced) sim comes in bursts: a writer history of ROS's default 10 would drop the
 # feedback of a short stage before a slow client acknowledged it. A client that keeps as many gets each one.
-FEEDBACK_QOS = QoSProfile(depth=100)
 GOODBYE_WALL_S = 2.0  # [s] a stopping server spends at most this long getting its goals' results out
 RESULT_GRACE_S = 0.2  # [s] after its goals' callbacks returned, for the result responses to go out
 _TERMINAL = frozenset((SkillState.SUCCEEDED, SkillState.ABORTED, SkillState.CANCELED))
