@@ -15,16 +15,8 @@ from nodes.runtime.executor import ServerExecutor, drop_qos_event_handlers, even
 from nodes.runtime.memory import map_large_buffers, release_build_memory
 from nodes.runtime.parameters import ParameterSpec, StartupError, declare, guard_parameter_services
 from nodes.runtime.sim_link import robot_of_sim, sim_time_overrides
-from nodes.runtime.startup import (
-    StopRequest,
-    bounded_cleanup,
-    destroy_node_fully,
-    end_process,
-    fail,
-    help_requested,
-    init_ros,
-    program_name,
-)
+from nodes.runtime.startup import StopRequest, bounded_cleanup, end_process, fail, help_requested, init_ros, program_name
+from sim_ros.teardown import destroy_node_fully
 
 NodeFactory = Callable[[str, str, list[Parameter]], Node]  # (robot, scene ("" = its default), parameter overrides) -> the node
 SCENE_PARAMETER = ParameterSpec("scene", "", "scene of the running /sim (empty = the one /sim reports when asked for "

@@ -15,12 +15,9 @@ import re
 import signal
 import sys
 from collections.abc import Iterator, Sequence
-from typing import TYPE_CHECKING, Any, NoReturn
+from typing import Any, NoReturn
 
 from nodes.runtime.parameters import ParameterSpec, StartupError, allowed
-
-if TYPE_CHECKING:
-    from rclpy.node import Node
 
 EXIT_BAD_START = 2
 
@@ -157,22 +154,3 @@ def fail(program: str, error: StartupError) -> int:
 def program_name(argv: Sequence[str]) -> str:
     return (argv[0].rsplit("/", 1)[-1] if argv else "") or "node"
 
-
-def destroy_node_fully(node: Node) -> None:
-    """Destroy the node's waitables that hold it (action servers and clients), then the node.
-
-    rclpy's ``destroy_node`` leaves waitables alone, and an action server keeps its node's handle (and with it
-    the process's DDS participant) alive. A process that then ends without finalization (:func:`end_process`)
-    never tells the others it left: they drop it only when its lease runs out, 20 s later (measured: ``/arm``
-    stopped with Ctrl-C stayed in every other node's graph for 20.0 s, ``/sim`` too with its lifecycle state
-    machine; ``/power`` left at once), and a participant removed for a lease that ran out is what can
-    deadlock another process's Fast DDS (eProsima/Fast-DDS#6502, see sim_ros/fastdds_profiles.xml).
-    """
-    for waitable in list(node.waitables):
-        destroy = getattr(waitable, "destroy", None)
-        if callable(destroy):
-            destroy()
-    node.destroy_node()
-    machine = getattr(node, "_state_machine", None)  # a lifecycle node's (rclpy's own attribute): it holds the node too
-    if machine is not None:
-        machine.destroy_when_not_in_use()

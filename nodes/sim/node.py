@@ -28,7 +28,6 @@ from nodes.runtime.parameters import ParameterSpec, StartupError, declare, guard
 from nodes.runtime.startup import (
     StopRequest,
     bounded_cleanup,
-    destroy_node_fully,
     end_process,
     fail,
     help_requested,
@@ -45,6 +44,7 @@ from nodes.sim.stepping import Stepper
 from sim_bridge import Pacer, Simulation
 from sim_bridge.skills import LEGS
 from sim_ros.names import MAX_STREAM_RATE_HZ, SIM_NODE
+from sim_ros.teardown import destroy_node_fully
 
 NODE_NAME = SIM_NODE
 HAND_OFF_TIMEOUT_S = 0.1  # [s of wall time] longest the physics thread waits for a waiting service to take its lock
