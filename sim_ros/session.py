@@ -288,7 +288,7 @@ class RosSession:
         self.wait_for(client.service_is_ready, timeout, f"service {name}")
         if resend_every_s is None:
             return self.wait_future(client.call_async(request), timeout, f"response of {name}")
-        return self._until_answered(lambda: client.call_async(request), timeout, f"response of {name}",
+        return self.until_answered(lambda: client.call_async(request), timeout, f"response of {name}",
                                     every_s=resend_every_s, forget=client.remove_pending_request)
 
     def parameters(self, node_name: str) -> AsyncParameterClient:
@@ -301,7 +301,7 @@ class RosSession:
         """Set one parameter through ``/<node>/set_parameters``. Returns (successful, reason)."""
         client = self.parameters(node_name)
         self.wait_for(lambda: client.services_are_ready(), timeout, f"parameter services of {node_name}")
-        response = self._until_answered(lambda: client.set_parameters([Parameter(name, value=value)]), timeout,
+        response = self.until_answered(lambda: client.set_parameters([Parameter(name, value=value)]), timeout,
                                         f"set {node_name} {name}")
         result = response.results[0]
         return bool(result.successful), str(result.reason)
@@ -309,14 +309,15 @@ class RosSession:
     def get_parameter(self, node_name: str, name: str, timeout: float = 10.0) -> Any:
         client = self.parameters(node_name)
         self.wait_for(lambda: client.services_are_ready(), timeout, f"parameter services of {node_name}")
-        response = self._until_answered(lambda: client.get_parameters([name]), timeout, f"get {node_name} {name}")
+        response = self.until_answered(lambda: client.get_parameters([name]), timeout, f"get {node_name} {name}")
         if not response.values:
             raise KeyError(f"{node_name} has no parameter {name!r}")
         return Parameter.from_parameter_msg(ParameterMsg(name=name, value=response.values[0])).value
 
-    def _until_answered(self, send: Callable[[], Future], timeout: float, what: str, every_s: float = RESEND_S,
+    def until_answered(self, send: Callable[[], Future], timeout: float, what: str, every_s: float = RESEND_S,
                         forget: Callable[[Future], Any] | None = None) -> Any:
-        """Send a request that may be sent twice (a query, or setting a value) every ``every_s`` wall seconds
+        """Send a request that may be sent twice (a query, setting a value, or one whose id the server answers
+        once: /sim/step's) every ``every_s`` wall seconds
         until one is answered: a node that has just started can lose the response to a first request while
         its side of discovery catches up (seen: 90 s without an answer). ``forget`` drops an unanswered one.
 

@@ -26,6 +26,7 @@ class SimServices:
         self._node = node
         self._sim = sim
         self._control = control
+        self._last_step: tuple[int, Step.Response] | None = None  # (request_id, answer) of the last step with an id
         services = MutuallyExclusiveCallbackGroup()
         node.create_service(Reset, "~/reset", self._on_reset, callback_group=services)
         node.create_service(Step, "~/step", self._on_step, callback_group=services)
@@ -77,26 +78,40 @@ class SimServices:
         return response
 
     def _on_step(self, request: Step.Request, response: Step.Response) -> Step.Response:
-        sim = self._sim
+        """Step the paused sim; a request repeating the id of the last step is answered again without stepping."""
         with self._control.lock:
-            if not self._control.paused:
-                response.success = False
-                response.message = "step is only allowed while paused; call ~/pause first"
-            elif not 1 <= request.steps <= MAX_STEP_REQUEST:
-                response.success = False
-                response.message = f"steps must be in [1, {MAX_STEP_REQUEST}], got {request.steps}"
-            else:
-                try:
-                    response.goals_ended = self._control.step_while_paused(
-                        sim.time + request.steps * sim.control_timestep - 1e-9, request.stop_at_goal_end)
-                except SteppingError as error:
-                    response.goals_ended = error.goals_ended
-                    response.success = False
-                    response.message = f"{error}; the simulation was reset"
-                    response.sim_time = sim.time
-                    return response
-                response.success = True
-                response.message = (f"stepped {request.steps} control steps" if not response.goals_ended
-                                    or not request.stop_at_goal_end else "stopped early: a goal ended")
-            response.sim_time = sim.time
+            last = self._last_step
+            if request.request_id and last is not None and last[0] == request.request_id:
+                answered = last[1]
+                response.success, response.sim_time, response.goals_ended = (answered.success, answered.sim_time,
+                                                                              answered.goals_ended)
+                response.message = f"{answered.message} (request {request.request_id} again: answered, not stepped)"
+                return response
+            self._step(request, response)
+            if request.request_id:
+                self._last_step = (request.request_id, response)
         return response
+
+    def _step(self, request: Step.Request, response: Step.Response) -> None:
+        """Fill ``response`` for ``request`` (under the control lock)."""
+        sim = self._sim
+        if not self._control.paused:
+            response.success = False
+            response.message = "step is only allowed while paused; call ~/pause first"
+        elif not 1 <= request.steps <= MAX_STEP_REQUEST:
+            response.success = False
+            response.message = f"steps must be in [1, {MAX_STEP_REQUEST}], got {request.steps}"
+        else:
+            try:
+                response.goals_ended = self._control.step_while_paused(
+                    sim.time + request.steps * sim.control_timestep - 1e-9, request.stop_at_goal_end)
+            except SteppingError as error:
+                response.goals_ended = error.goals_ended
+                response.success = False
+                response.message = f"{error}; the simulation was reset"
+                response.sim_time = sim.time
+                return
+            response.success = True
+            response.message = (f"stepped {request.steps} control steps" if not response.goals_ended
+                                or not request.stop_at_goal_end else "stopped early: a goal ended")
+        response.sim_time = sim.time

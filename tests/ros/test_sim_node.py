@@ -182,6 +182,13 @@ def test_pause_step_and_resume(client, g1):
         assert stepped.sim_time == pytest.approx(first.sim_time + 25 * 0.004, abs=1e-9)
         refused = client.call(Step, "/sim/step", Step.Request(steps=0))
         assert not refused.success and "1" in refused.message
+        # A step sent again with its id (its answer was lost) is answered again and not taken twice.
+        with_id = client.call(Step, "/sim/step", Step.Request(steps=10, request_id=7_000_001))
+        again = client.call(Step, "/sim/step", Step.Request(steps=10, request_id=7_000_001))
+        assert with_id.success and with_id.sim_time == pytest.approx(stepped.sim_time + 10 * 0.004, abs=1e-9)
+        assert again.success and again.sim_time == with_id.sim_time and "not stepped" in again.message
+        next_id = client.call(Step, "/sim/step", Step.Request(steps=10, request_id=7_000_002))
+        assert next_id.sim_time == pytest.approx(with_id.sim_time + 10 * 0.004, abs=1e-9)
     finally:
         assert client.call(Trigger, "/sim/resume", Trigger.Request()).success
     not_paused = client.call(Step, "/sim/step", Step.Request(steps=3))

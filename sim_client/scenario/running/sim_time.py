@@ -9,6 +9,8 @@ own pace and the run follows ``/clock``.
 from __future__ import annotations
 
 import contextlib
+import itertools
+import random
 import time
 from collections.abc import Callable
 from typing import Any
@@ -22,6 +24,10 @@ from sim_ros.session import RESPONSE_QOS, RosSession, WaitTimeout
 STARTUP_WALL_S = 90.0
 SERVICE_WALL_S = 30.0
 GOAL_END_WALL_S = 5.0  # wall seconds to wait for the results of goals /sim reports ended
+# A step unanswered this long [s of wall time] is sent again with its id: /sim answers a repeated id without
+# stepping again, so a lost request or answer costs this much, not the run (an answer is lost when the answering
+# side has not matched the asking one yet: a fresh clone's run on a loaded machine once waited 30 s and failed).
+STEP_RESEND_S = 2.0
 
 
 class StepFailure(RuntimeError):
@@ -51,6 +57,7 @@ class SimTime:
         self.rtf = rtf
         self.clock = session.record(Clock, "clock", keep=10)
         self._step = session.node.create_client(StepSrv, "sim/step", qos_profile=RESPONSE_QOS)
+        self._step_ids = itertools.count(random.SystemRandom().getrandbits(48) + 1)  # this run's step ids (nonzero)
         self._goals_done = goals_done
         self.control_dt = 0.0  # [s] of sim time per /sim/step step, measured by calibrate()
         self._sim_now = 0.0
@@ -81,8 +88,10 @@ class SimTime:
         """Step the paused sim ``steps`` control steps; returns the sim time it reached [s]."""
         done_before = self._goals_done()
         # /sim stops early where a goal ends, so that the run sees each goal end where it happened.
-        request = StepSrv.Request(steps=steps, stop_at_goal_end=True)
-        response = call_service(self.session, self._step, request, "/sim/step")
+        request = StepSrv.Request(steps=steps, stop_at_goal_end=True, request_id=next(self._step_ids))
+        self.session.wait_for(self._step.service_is_ready, SERVICE_WALL_S, "service /sim/step")
+        response = self.session.until_answered(lambda: self._step.call_async(request), SERVICE_WALL_S, "response of /sim/step",
+                                               every_s=STEP_RESEND_S, forget=self._step.remove_pending_request)
         if not response.success:
             raise StepFailure(f"/sim/step refused: {response.message}")
         self._sim_now = max(self._sim_now, response.sim_time)
