@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import atexit
 import faulthandler
 import sys
 import threading
@@ -22,8 +21,6 @@ from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import QoSProfile
 from rclpy.task import Future
 
-from sim_ros.teardown import destroy_node_fully
-
 MsgT = TypeVar("MsgT")
 
 # A client's service readers keep this many responses (rclpy's default is 10). The responses of a
@@ -42,35 +39,6 @@ SENT_AGAIN = frozenset({
 })
 
 T = TypeVar("T")
-
-_PROCESS_CONTEXT: Context | None = None
-_PROCESS_CONTEXT_LOCK = threading.Lock()
-
-
-def process_context() -> Context:
-    """The process's one rclpy context, made on first use and ended at exit; every :class:`RosSession` uses it.
-
-    One context is one DDS participant (rmw_fastrtps): the sessions of a process are nodes of one participant, as
-    the nodes of a ROS 2 process are. A context per session made a participant per session, discovered by every
-    other process, and several participants in one process (a test with its module's client and a run's
-    session) are what Fast DDS 2.14 can deadlock between (eProsima/Fast-DDS#6193: one participant's timer thread
-    waiting on another's endpoint list). A new session is also a new node only: no participant discovery.
-    """
-    global _PROCESS_CONTEXT
-    with _PROCESS_CONTEXT_LOCK:
-        if _PROCESS_CONTEXT is None or not _PROCESS_CONTEXT.ok():  # (rclpy's SIGINT handler shuts contexts down)
-            context = Context()
-            rclpy.init(context=context)
-            atexit.register(_end_context, context)
-            _PROCESS_CONTEXT = context
-        return _PROCESS_CONTEXT
-
-
-def _end_context(context: Context) -> None:
-    """At exit: shut the context down and delete its participant, so that the other processes see it leave now
-    (not 20 s later, when its lease would run out)."""
-    rclpy.try_shutdown(context=context)
-    context.destroy()
 
 
 def quiet_events() -> SubscriptionEventCallbacks:
@@ -121,7 +89,7 @@ class TopicRecorder(Generic[MsgT]):
 
 
 class RosSession:
-    """A node of the process's context (:func:`process_context`) with its executor thread, closed with ``with`` or :meth:`close`.
+    """rclpy context + node + executor thread, closed with ``with`` or :meth:`close`.
 
     Args:
         name: node name of the client.
@@ -131,15 +99,15 @@ class RosSession:
     """
 
     def __init__(self, name: str = "sim_client", use_sim_time: bool = True, namespace: str = "") -> None:
-        self.context = process_context()
+        self.context = Context()
         namespace = namespace.strip("/")
+        # a namespaced bring-up has its own clock under the namespace; rclpy's time source reads /clock
+        rclpy.init(context=self.context, args=["--ros-args", "-r", f"/clock:=/{namespace}/clock"] if namespace else None)
         self.namespace = f"/{namespace}" if namespace else ""
         self.node = Node(
             name,
             namespace=self.namespace or None,
             context=self.context,
-            # a namespaced bring-up has its own clock under the namespace; rclpy's time source reads /clock
-            cli_args=["--ros-args", "-r", f"/clock:=/{namespace}/clock"] if namespace else None,
             parameter_overrides=[Parameter("use_sim_time", value=use_sim_time)],
         )
         self._closing = False
@@ -183,19 +151,18 @@ class RosSession:
         self.close()
 
     def close(self) -> None:
-        """Stop the executor, wait for its thread to end, then destroy the node with its action clients.
+        """Stop the executor, wait for its thread to end, then destroy the node and the context.
 
         The node is destroyed only once the spin thread has ended: destroyed under a spin still running
         (an executor shutdown outlives its timeout on a loaded machine), rclpy finishes destroying a
-        handle the wait set still held on the spin thread, and that once hung the whole process. The
-        process's context (:func:`process_context`) stays for the next session.
+        handle the wait set still held on the spin thread, and that once hung the whole process.
         """
-        if self._closing:
-            return
         self._closing = True
         self._executor.shutdown(timeout_sec=CLOSE_WAIT_S)
         self._thread.join(timeout=CLOSE_WAIT_S)
-        destroy_node_fully(self.node)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+        self._thread.join(timeout=CLOSE_WAIT_S)
 
     # ----- waiting -----------------------------------------------------------------------
     @staticmethod
