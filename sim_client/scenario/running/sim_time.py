@@ -34,10 +34,14 @@ class StepFailure(RuntimeError):
     """A step could not be carried out (timeout, server missing, /sim refused); the run fails."""
 
 
-def call_service(session: RosSession, client: Any, request: Any, what: str) -> Any:
-    """Wait for the service, call it and wait for its response (``SERVICE_WALL_S`` wall seconds each)."""
+def call_service(session: RosSession, client: Any, request: Any, what: str, resend_every_s: float | None = None) -> Any:
+    """Wait for the service, call it and wait for its response (``SERVICE_WALL_S`` wall seconds each); with
+    ``resend_every_s``, send the request again that often until answered (only a request safe to send twice)."""
     session.wait_for(client.service_is_ready, SERVICE_WALL_S, f"service {what}")
-    return session.wait_future(client.call_async(request), SERVICE_WALL_S, f"response of {what}")
+    if resend_every_s is None:
+        return session.wait_future(client.call_async(request), SERVICE_WALL_S, f"response of {what}")
+    return session.until_answered(lambda: client.call_async(request), SERVICE_WALL_S, f"response of {what}",
+                                  every_s=resend_every_s, forget=client.remove_pending_request)
 
 
 class SimTime:
@@ -89,9 +93,7 @@ class SimTime:
         done_before = self._goals_done()
         # /sim stops early where a goal ends, so that the run sees each goal end where it happened.
         request = StepSrv.Request(steps=steps, stop_at_goal_end=True, request_id=next(self._step_ids))
-        self.session.wait_for(self._step.service_is_ready, SERVICE_WALL_S, "service /sim/step")
-        response = self.session.until_answered(lambda: self._step.call_async(request), SERVICE_WALL_S, "response of /sim/step",
-                                               every_s=STEP_RESEND_S, forget=self._step.remove_pending_request)
+        response = call_service(self.session, self._step, request, "/sim/step", resend_every_s=STEP_RESEND_S)
         if not response.success:
             raise StepFailure(f"/sim/step refused: {response.message}")
         self._sim_now = max(self._sim_now, response.sim_time)
