@@ -83,7 +83,8 @@ class McapRecorder:
                 self.latest_stamp_s[topic] = _cdr_leading_stamp_s(data)
 
     def close(self) -> None:
-        for subscription in self._subscriptions:
+        subscriptions, self._subscriptions = self._subscriptions, []
+        for subscription in subscriptions:
             self.session.destroy_subscription(subscription)
         with self._lock:
             if self._closed:

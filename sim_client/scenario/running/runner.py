@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from typing import TextIO
 
 from sim_client.scenario.model.schema import Scenario
+from sim_client.scenario.outputs.recorder_process import RecordingError
 from sim_client.scenario.running.bringups import Bringups
 from sim_client.scenario.running.options import RunOptions
 from sim_client.scenario.running.report import RunResult, write_json
@@ -94,9 +95,12 @@ def _write_artifacts(run_: ScenarioRun, result: RunResult, stream: TextIO) -> No
     folder = result.folder
     paths: dict[str, str | list[str]] = {}  # artifact kind -> path; "plots" -> a list of paths
     if run_.mcap is not None:
-        run_.mcap.close()
-        paths["mcap"] = str(run_.mcap.path)
-        result.report["mcap_topics"] = dict(sorted(run_.mcap.counts.items()))
+        try:
+            recorded = run_.mcap.close()
+            paths["mcap"] = str(run_.mcap.path)
+            result.report["mcap_topics"] = dict(sorted(recorded.counts.items()))
+        except RecordingError as error:
+            result.report.setdefault("artifact_errors", []).append(f"mcap: {error}")
     start, end = run_.marks.get("start", 0.0), run_.marks.get("end", 0.0)
     if run_.options.plots:
         from sim_client.scenario.outputs import plots

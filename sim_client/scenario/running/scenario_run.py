@@ -27,7 +27,7 @@ from sim_client.scenario.model.conditions import Condition, Trigger
 from sim_client.scenario.model.schema import Scenario
 from sim_client.scenario.model.series import Series, joint_series, object_series, odom_series, stamp_s
 from sim_client.scenario.model.steps import CmdVelStep, PushStep, SendGoalStep, SetParamStep, describe_step, step_kind
-from sim_client.scenario.outputs.recording import McapRecorder
+from sim_client.scenario.outputs.recorder_process import RecordingError, RecordingProcess
 from sim_client.scenario.running.bringups import ParameterKeeper
 from sim_client.scenario.running.options import RunOptions
 from sim_client.scenario.running.progress import Progress, feedback_summary
@@ -62,9 +62,9 @@ class ScenarioRun:
         # Measures read every sample: a reader's history as deep as the writer's, so that a burst of a
         # lock-stepped stride waiting behind a busy spin thread is not overwritten (with a depth of 10, a
         # loaded machine lost a stand's lowest /odom sample: its base_height_min differed run to run).
-        self.odom = session.record(Odometry, "odom", qos=STREAMS, keep=1_000_000)
-        self.joints = session.record(JointState, "joint_states", qos=STREAMS, keep=1_000_000)
-        self.objects = session.record(ObjectStates, "objects", qos=STREAMS, keep=1_000_000)
+        self.odom = session.record(Odometry, "odom", qos=STREAMS, keep=1_000_000, serialized=True)
+        self.joints = session.record(JointState, "joint_states", qos=STREAMS, keep=1_000_000, serialized=True)
+        self.objects = session.record(ObjectStates, "objects", qos=STREAMS, keep=1_000_000, serialized=True)
         # commanded vs measured speed, for the speed plot only: a run without plots carries no extra traffic
         self.locomotion = session.record(LocomotionState, "sim/locomotion_state", qos=STREAMS,
                                          keep=1_000_000) if options.plots else None
@@ -90,7 +90,7 @@ class ScenarioRun:
         self._step_index = 0
         self._step_label = ""
         self._wall0 = 0.0  # wall time [s] the run started at, set by execute()
-        self.mcap: McapRecorder | None = None
+        self.mcap: RecordingProcess | None = None  # recording.mcap, written by a process of its own
         self._last_discover = 0.0
         self._kept_parameters = parameters  # the bring-up's start-up values, read before a node's first change
 
@@ -101,10 +101,11 @@ class ScenarioRun:
     # ----- start -----------------------------------------------------------------------
     def start(self) -> None:
         """Wait for the sim (and servers), calibrate stepping, reset to the keyframe."""
+        if self.options.record:  # started first: its start-up overlaps the waits for the nodes below
+            self.mcap = RecordingProcess(self.folder / "recording.mcap", exclude=self._unwatched,
+                                         namespace=self.session.namespace)
         self.session.wait_for(self._reset.service_is_ready, STARTUP_WALL_S, "the /sim node (service /sim/reset)")
-        if self.options.record:
-            self.mcap = McapRecorder(self.session, self.folder / "recording.mcap", exclude=self._unwatched,
-                                     namespace=self.session.namespace)
+        if self.mcap is not None:
             self.mcap.discover()
         for action in self.scenario.actions:
             client = ACTION_CLIENTS[action](self.session)
@@ -114,7 +115,7 @@ class ScenarioRun:
                 raise StepFailure(f"{error}") from None
             self.clients[action] = client
         self.time.calibrate()
-        if self.lock_step:
+        if self.lock_step or self.mcap is not None:
             self._wait_recordings_flow()
         self.reset(None)
         self.marks["start"] = self.now()
@@ -127,12 +128,16 @@ class ScenarioRun:
         Messages published before a subscription is matched are not delivered; on a loaded machine the
         matching can take a while, and a run stepped as fast as possible would start without them.
         The sim is not stepped meanwhile: a reset to the keyframe (sim time kept) publishes every stream
-        at once. So the scenario starts at the same sim time however long the matching took.
+        at once. So the scenario starts at the same sim time however long the matching took. A recorded run
+        also waits here for its recorder process to have matched the streams, stepped or free-running.
         """
         def flowing() -> bool:
-            mcap = self.mcap
-            return (self.time.clock.count > 0 and self.joints.count > 0 and self.odom.count > 0
-                    and (mcap is None or all(mcap.counts.get(t, 0) > 0 for t in self.streams)))
+            if not (self.time.clock.count > 0 and self.joints.count > 0 and self.odom.count > 0):
+                return False
+            if self.mcap is None:
+                return True
+            counts = self.mcap.status().counts
+            return all(counts.get(t, 0) > 0 for t in self.streams)
 
         deadline = time.monotonic() + STARTUP_WALL_S
         while not flowing():
@@ -146,7 +151,23 @@ class ScenarioRun:
     def advance(self, dt: float) -> None:
         """Let about ``dt`` [s] of sim time pass, then check triggers."""
         self.time.advance(dt)
+        self._recorder_keeps_up()
         self._tick()
+
+    def _recorder_keeps_up(self) -> None:
+        """Lock-stepped and recording the camera, wait until the recorder has the newest frame this run has.
+
+        The camera's writer keeps its last 4 frames (0.4 s of sim time at 10 Hz) for a reader that lags; a
+        recorder process that fell further behind /sim, stepped as fast as possible on a loaded machine, lost
+        frames (29 of 33 in a parallel test run). Waiting for it here holds /sim back as a reader in the
+        runner's own process did. The other streams' writers keep 10 s of sim time.
+        """
+        images, mcap = self.camera_images, self.mcap
+        if not self.lock_step or images is None or mcap is None or (latest := images.latest) is None:
+            return
+        topic, frame_s = f"{self.session.namespace}/{self.camera_name}/image_raw", stamp_s(latest.header.stamp)
+        self.session.wait_for(lambda: mcap.status().latest_stamp_s.get(topic, -math.inf) >= frame_s - 1e-9,
+                              SERVICE_WALL_S, f"the recorder to take {topic} at {frame_s:.2f} s")
 
     def _elapsed(self) -> float:
         return self.now() - self.marks.get("start", 0.0)
@@ -402,15 +423,15 @@ class ScenarioRun:
         def arrived() -> bool:
             if latest_s(self.odom) < end - 0.05 or latest_s(self.joints) < end - slack[self.streams[1]]:
                 return False
-            mcap = self.mcap
-            if mcap is None:
+            if self.mcap is None:
                 return True
-            return all(mcap.latest_stamp_s.get(topic, -math.inf) >= end - slack[topic]
-                       for topic in self.streams if topic in mcap.counts)
+            recorded = self.mcap.status()
+            return all(recorded.latest_stamp_s.get(topic, -math.inf) >= end - slack[topic]
+                       for topic in self.streams if topic in recorded.counts)
 
         try:
             self.session.wait_for(arrived, 10.0, "the final /odom, /joint_states and /clock")
-        except WaitTimeout as error:
+        except (WaitTimeout, RecordingError) as error:
             self.warnings.append(f"{error}: measures and the recording may miss the run's last state")
             self.progress.say(f"  WARN  {self.warnings[-1]}")
 
