@@ -52,6 +52,9 @@ def test_walking_speed_from_0_5_to_0_8_mid_walk(client):
         set_walking_speed(client, 0.5)
         # A deep queue (33 s at 30 Hz): a reader starved for a moment on a loaded machine loses nothing
         odom = client.record(Odometry, "/odom", qos=1000, keep=1_000_000)
+        # Matched before the walk starts: a subscription matched late (a fresh clone's loaded run had its first
+        # /odom at 3.87 s of sim time) left the 2 s before the change without samples.
+        client.wait_for(lambda: odom.count > 0, READY_S, "/odom to reach the test's client")
         sent = send(client, walk, Walk.Goal(distance=14.0))  # speed 0: the walking_speed parameter's pace
         assert sent.handle.accepted
         wait_feedback(client, sent, lambda f: f.distance_walked > 1.5, READY_S, "the walk under way at 0.5 m/s")
