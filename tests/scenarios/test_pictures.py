@@ -193,3 +193,26 @@ def test_a_course_run_writes_the_video_and_the_plots(tmp_path):
     written = report["artifacts"]
     assert pathlib.Path(written["video"]).stat().st_size > 20_000
     assert {pathlib.Path(p).name for p in written["plots"]} >= {"path.png", "speed.png", "base.png"}
+
+
+def test_a_video_rendered_by_two_processes_has_the_frames_of_one_rendered_by_one(tmp_path, course):
+    """The stretches rendered at once (render.VIDEO_WORKERS) are joined into one video of the same frames."""
+    import imageio_ffmpeg
+
+    recorded = render.RecordedRun("split", "g1", "course", 0.0, 8.0, walking_odom(),
+                                  ([], Series(np.zeros(0), np.zeros((0, 0)))), {}, (navigate_goal(done=6.0),))
+    size = (192, 144)  # multiples of 16: the encoder's macro blocks
+    videos = {}
+    for workers in (1, 2):
+        path = tmp_path / f"by_{workers}.mp4"
+        count = render.render_video(recorded, path, fps=20, size=size, robot=course, workers=workers)
+        assert count == 8 * 20 + 1 + round(render.HOLD_END_S * 20)  # 20 per second, the end, then held
+        reader = imageio_ffmpeg.read_frames(str(path))
+        meta = next(reader)
+        assert tuple(meta["size"]) == size
+        videos[workers] = np.stack([np.frombuffer(frame, np.uint8).reshape(size[1], size[0], 3) for frame in reader])
+    assert len(videos[2]) == len(videos[1])
+    # Each stretch is encoded on its own: the pictures agree up to the encoder's rounding, frame by frame.
+    difference = np.abs(videos[2].astype(int) - videos[1].astype(int)).mean(axis=(1, 2, 3))
+    assert difference.max() < 4.0, difference.max()
+    assert not list(tmp_path.glob(".by_2.part*")), "the stretches are removed once joined"

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import os
 import pathlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
@@ -355,26 +356,98 @@ def playback_speed(sim_s: float) -> float:
 
 
 def render_video(recorded: RecordedRun, path: pathlib.Path, fps: int = 20, size: tuple[int, int] = (640, 480),
-                 speed: float | None = None, shadows: bool = False, robot: RobotSpec | None = None) -> int:
+                 speed: float | None = None, shadows: bool = False, robot: RobotSpec | None = None,
+                 workers: int | None = None) -> int:
     """Render the run from ``recorded.start`` to ``recorded.end`` into an MP4; returns the number of frames.
 
     Headless rendering may run on the CPU, where shadows and reflections cost most of a frame: they are
-    off by default.
+    off by default. The frames are rendered by ``workers`` processes at once (default: ``VIDEO_WORKERS``), each a
+    stretch of the video encoded on its own; the stretches are joined without re-encoding.
 
     Args:
         fps: frames per video second.
         speed: sim seconds per video second (None: :func:`playback_speed`); a sped-up video says so in its title.
+        workers: processes rendering at once (1: this one alone).
     """
-    import imageio_ffmpeg
-
     if speed is None:
         speed = playback_speed(recorded.end - recorded.start)
     if speed != 1.0:
         recorded = replace(recorded, name=f"{recorded.name} ({speed:.1f}x)")
-    width, height = size
     frames = max(1, int((recorded.end - recorded.start) / speed * fps))
     # ... and the last frame at the end exactly (how the goals ended)
     times = [t for t in (recorded.start + k * speed / fps for k in range(frames)) if t < recorded.end - 1e-6] + [recorded.end]
+    hold = round(HOLD_END_S * fps)  # the end, still, long enough to read how it went
+    workers = VIDEO_WORKERS if workers is None else max(1, workers)
+    if workers == 1 or len(times) < workers * MIN_FRAMES_PER_WORKER:
+        return render_frames(recorded, path, times, hold, fps, size, shadows, robot)
+    # This process starts on its stretch at once, the others after their start-up: it takes that many frames more.
+    share = (len(times) + (workers - 1) * STARTUP_FRAMES) / workers
+    bounds = [0, *(min(len(times), round(share + (i - 1) * (share - STARTUP_FRAMES))) for i in range(1, workers)), len(times)]
+    stretches = [times[a:b] for a, b in itertools.pairwise(bounds)]
+    parts = [path.with_name(f".{path.stem}.part{i}{path.suffix}") for i in range(workers)]
+    others = []
+    try:
+        for i in range(1, workers):
+            job = (recorded, parts[i], stretches[i], hold if i == workers - 1 else 0, fps, size, shadows)
+            others.append(_RenderProcess(job, path.with_name(f".{path.stem}.part{i}.job")))
+        count = render_frames(recorded, parts[0], stretches[0], 0, fps, size, shadows, robot)
+        count += sum(other.result() for other in others)
+        _join(parts, path)
+    finally:
+        for other in others:
+            other.close()
+        for part in parts:
+            part.unlink(missing_ok=True)
+    return count
+
+
+VIDEO_WORKERS = min(2, os.cpu_count() or 1)  # processes rendering a video's frames at once (the CPU renders them)
+MIN_FRAMES_PER_WORKER = 60  # a shorter stretch is not worth a process of its own
+STARTUP_FRAMES = 50  # frames rendered in the time a rendering process takes to start (~1 s: imports, the scene)
+RENDER_WALL_S = 600.0  # [s of wall time] the longest a stretch may take
+
+
+class _RenderProcess:
+    """A stretch of a video rendered by ``python -m sim_client.scenario.outputs.render JOB`` (a process of its own:
+    the CPU renderer holds one core per process; started with ``subprocess``, not ``multiprocessing``, which
+    would import the caller's main script again)."""
+
+    def __init__(self, job: tuple[Any, ...], job_path: pathlib.Path) -> None:
+        import pickle
+        import subprocess
+        import sys
+
+        self._job_path = job_path
+        job_path.write_bytes(pickle.dumps(job))
+        self._process = subprocess.Popen([sys.executable, "-m", __name__, str(job_path)], stdout=subprocess.PIPE,
+                                         stderr=subprocess.PIPE, text=True, env=dict(os.environ))
+
+    def result(self) -> int:
+        """The frames the stretch has, once written.
+
+        Raises:
+            RuntimeError: the process failed (its error output is in the message).
+        """
+        out, err = self._process.communicate(timeout=RENDER_WALL_S)
+        if self._process.returncode != 0:
+            raise RuntimeError(f"rendering a stretch of the video failed (exit {self._process.returncode}): "
+                               f"{err.strip()[-1500:]}")
+        return int(out.split()[-1])
+
+    def close(self) -> None:
+        if self._process.poll() is None:
+            self._process.kill()
+            self._process.wait()
+        self._job_path.unlink(missing_ok=True)
+
+
+def render_frames(recorded: RecordedRun, path: pathlib.Path, times: Sequence[float], hold: int, fps: int,
+                  size: tuple[int, int], shadows: bool = False, robot: RobotSpec | None = None) -> int:
+    """Render the frames at sim ``times`` [s] into the MP4 ``path``, the last one held ``hold`` more frames; returns
+    the number of frames written."""
+    import imageio_ffmpeg
+
+    width, height = size
     writer = imageio_ffmpeg.write_frames(str(path), (width, height), fps=fps, codec="libx264", pix_fmt_out="yuv420p",
                                          macro_block_size=16, output_params=["-preset", "veryfast", "-crf", "26"])
     writer.send(None)
@@ -385,12 +458,30 @@ def render_video(recorded: RecordedRun, path: pathlib.Path, fps: int = 20, size:
                 picture = np.ascontiguousarray(renderer.frame(t))
                 writer.send(picture)
                 count += 1
-            for _ in range(round(HOLD_END_S * fps)):  # the end, still, long enough to read how it went
+            for _ in range(hold):
                 writer.send(picture)
                 count += 1
     finally:
         writer.close()
     return count
+
+
+def _join(parts: Sequence[pathlib.Path], path: pathlib.Path) -> None:
+    """Join MP4 stretches encoded alike into ``path`` (ffmpeg's concat demuxer, no re-encoding)."""
+    import subprocess
+
+    import imageio_ffmpeg
+
+    listing = path.with_name(f".{path.stem}.parts.txt")
+    listing.write_text("".join(f"file '{part.resolve()}'\n" for part in parts))
+    try:
+        done = subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-loglevel", "error", "-f", "concat", "-safe", "0",
+                               "-i", str(listing), "-c", "copy", "-movflags", "+faststart", str(path)],
+                              capture_output=True, text=True, timeout=120)
+    finally:
+        listing.unlink(missing_ok=True)
+    if done.returncode != 0:
+        raise RuntimeError(f"joining the video's stretches failed: {done.stderr.strip()[-500:]}")
 
 
 def _has_joint(model: Any, name: str) -> bool:
@@ -407,3 +498,10 @@ def _has_body(model: Any, name: str) -> bool:
     except KeyError:
         return False
     return True
+
+
+if __name__ == "__main__":  # a stretch of a video (see _RenderProcess): its job file in, its frame count out
+    import pickle
+    import sys
+
+    print(render_frames(*pickle.loads(pathlib.Path(sys.argv[1]).read_bytes())))
