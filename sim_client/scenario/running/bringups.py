@@ -1,12 +1,14 @@
 """One bring-up for consecutive runs of the same robot, scene and pace: started once, reset between runs.
 
-A run on a reused bring-up gives the report a run on fresh nodes gives (apart from wall times):
-before it, the parameters the previous runs changed (``set_param`` steps) are set back to the values
-they had before the first change, and ``/sim/reset_simulation`` (SCOPE_ALL) puts the scene back to its
-keyframe, ends the goals still running in ``/sim`` and restarts sim time, and with it the publication
-grid, at 0: the state of a bring-up just started paused. Each run has its own client session, so its
-recordings start empty. A bring-up is not reused after a run that ended in an error (a failed step,
-not a failed expectation), nor when it has exited: the next run starts its own.
+A run on a reused bring-up gives the report a run on fresh nodes gives (apart from wall times): the
+parameters a run changed (``set_param`` steps) are set back to the values they had before the first
+change at the end of that run, through its session (which has found their nodes: a new session took
+1.5-4 s to find a node's parameter services), and before the next run ``/sim/reset_simulation``
+(SCOPE_ALL) puts the scene back to its keyframe, ends the goals still running in ``/sim`` and restarts
+sim time, and with it the publication grid, at 0: the state of a bring-up just started paused. Each
+run has its own client session, so its recordings start empty. A bring-up is not reused after a run
+that ended in an error (a failed step, not a failed expectation), nor when it has exited: the next run
+starts its own.
 """
 
 from __future__ import annotations
@@ -45,9 +47,13 @@ class ParameterKeeper:
     """
 
     kept: dict[str, dict[str, ParameterValue]] = field(default_factory=dict)  # node -> name -> value at start-up
+    changed: bool = False  # a run may have changed a parameter since the last restore
+    last_restored: list[str] = field(default_factory=list)  # what the last restore set back ("node name")
 
     def remember(self, session: RosSession, node: str) -> None:
-        """Read every parameter of ``node`` (``"locomotion"`` or ``"/locomotion"``), once per bring-up."""
+        """Read every parameter of ``node`` (``"locomotion"`` or ``"/locomotion"``), once per bring-up; call it
+        before each change a run makes."""
+        self.changed = True
         node = node if node.startswith("/") else f"{session.namespace}/{node}"
         if node in self.kept:
             return
@@ -60,9 +66,13 @@ class ParameterKeeper:
     def restore(self, session: RosSession) -> list[str]:
         """Set back every kept parameter that differs now; returns ``node name`` of each one set back.
 
+        Nothing is asked when no run changed a parameter since the last restore.
+
         Raises:
             StepFailure: a node refused its own start-up value.
         """
+        if not self.changed:
+            return []
         restored = []
         for node, kept in self.kept.items():
             client = session.parameters(node)
@@ -78,6 +88,8 @@ class ParameterKeeper:
             if refused:
                 raise StepFailure(f"{node} refused its start-up values: {'; '.join(refused)}")
             restored += [f"{node} {p.name}" for p in changed]
+        self.changed = False
+        self.last_restored = restored
         return restored
 
 
@@ -104,7 +116,8 @@ class Bringup:
         """
         if self.runs == 0:
             return []
-        restored = self.parameters.restore(session)
+        restored = self.parameters.restore(session) or self.parameters.last_restored  # (set back after the last run)
+        self.parameters.last_restored = []
         request = ResetSimulation.Request(scope=ResetSimulation.Request.SCOPE_ALL)
         response = session.call(ResetSimulation, "sim/reset_simulation", request, timeout=SERVICE_WALL_S)
         if response.result.result != Result.RESULT_OK:

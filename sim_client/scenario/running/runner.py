@@ -20,7 +20,8 @@ from sim_client.scenario.running.bringups import Bringups
 from sim_client.scenario.running.options import RunOptions
 from sim_client.scenario.running.report import RunResult, write_json
 from sim_client.scenario.running.scenario_run import ScenarioRun
-from sim_ros.session import RosSession
+from sim_client.scenario.running.sim_time import StepFailure
+from sim_ros.session import RosSession, WaitTimeout
 
 DEFAULT_OPTIONS = RunOptions()
 
@@ -69,6 +70,13 @@ def run(scenario: Scenario, options: RunOptions = DEFAULT_OPTIONS, stream: TextI
         result.report["startup_wall_s"] = round(result.startup_time, 3)
         bringup.runs += 1
         bringup.trusted = not result.failures  # a run that ended in an error may leave what a reset does not mend
+        if bringup.trusted:
+            try:  # through this run's session, which has found the nodes it changed
+                bringup.parameters.restore(session)
+            except (StepFailure, WaitTimeout) as error:
+                bringup.trusted = False
+                stream.write(f"the parameters this run changed could not be set back ({error}): the next run "
+                             "starts a bring-up of its own\n")
         log = bringup.copy_log(folder)
         if not bringup.process.alive():
             result.failures.append(f"bringup exited early with code {bringup.process.process.returncode}; see {log}")
