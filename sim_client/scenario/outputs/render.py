@@ -385,14 +385,16 @@ def render_video(recorded: RecordedRun, path: pathlib.Path, fps: int = 20, size:
     bounds = [0, *(min(len(times), round(share + (i - 1) * (share - STARTUP_FRAMES))) for i in range(1, workers)), len(times)]
     stretches = [times[a:b] for a, b in itertools.pairwise(bounds)]
     parts = [path.with_name(f".{path.stem}.part{i}{path.suffix}") for i in range(workers)]
+    from sim_client.scenario.outputs.video_stretches import RenderProcess, join
+
     others = []
     try:
         for i in range(1, workers):
-            job = (recorded, parts[i], stretches[i], hold if i == workers - 1 else 0, fps, size, shadows)
-            others.append(_RenderProcess(job, path.with_name(f".{path.stem}.part{i}.job")))
+            args = (recorded, parts[i], stretches[i], hold if i == workers - 1 else 0, fps, size, shadows)
+            others.append(RenderProcess(render_frames, args, path.with_name(f".{path.stem}.part{i}.job")))
         count = render_frames(recorded, parts[0], stretches[0], 0, fps, size, shadows, robot)
         count += sum(other.result() for other in others)
-        _join(parts, path)
+        join(parts, path)
     finally:
         for other in others:
             other.close()
@@ -404,41 +406,6 @@ def render_video(recorded: RecordedRun, path: pathlib.Path, fps: int = 20, size:
 VIDEO_WORKERS = min(2, os.cpu_count() or 1)  # processes rendering a video's frames at once (the CPU renders them)
 MIN_FRAMES_PER_WORKER = 60  # a shorter stretch is not worth a process of its own
 STARTUP_FRAMES = 50  # frames rendered in the time a rendering process takes to start (~1 s: imports, the scene)
-RENDER_WALL_S = 600.0  # [s of wall time] the longest a stretch may take
-
-
-class _RenderProcess:
-    """A stretch of a video rendered by ``python -m sim_client.scenario.outputs.render JOB`` (a process of its own:
-    the CPU renderer holds one core per process; started with ``subprocess``, not ``multiprocessing``, which
-    would import the caller's main script again)."""
-
-    def __init__(self, job: tuple[Any, ...], job_path: pathlib.Path) -> None:
-        import pickle
-        import subprocess
-        import sys
-
-        self._job_path = job_path
-        job_path.write_bytes(pickle.dumps(job))
-        self._process = subprocess.Popen([sys.executable, "-m", __name__, str(job_path)], stdout=subprocess.PIPE,
-                                         stderr=subprocess.PIPE, text=True, env=dict(os.environ))
-
-    def result(self) -> int:
-        """The frames the stretch has, once written.
-
-        Raises:
-            RuntimeError: the process failed (its error output is in the message).
-        """
-        out, err = self._process.communicate(timeout=RENDER_WALL_S)
-        if self._process.returncode != 0:
-            raise RuntimeError(f"rendering a stretch of the video failed (exit {self._process.returncode}): "
-                               f"{err.strip()[-1500:]}")
-        return int(out.split()[-1])
-
-    def close(self) -> None:
-        if self._process.poll() is None:
-            self._process.kill()
-            self._process.wait()
-        self._job_path.unlink(missing_ok=True)
 
 
 def render_frames(recorded: RecordedRun, path: pathlib.Path, times: Sequence[float], hold: int, fps: int,
@@ -466,24 +433,6 @@ def render_frames(recorded: RecordedRun, path: pathlib.Path, times: Sequence[flo
     return count
 
 
-def _join(parts: Sequence[pathlib.Path], path: pathlib.Path) -> None:
-    """Join MP4 stretches encoded alike into ``path`` (ffmpeg's concat demuxer, no re-encoding)."""
-    import subprocess
-
-    import imageio_ffmpeg
-
-    listing = path.with_name(f".{path.stem}.parts.txt")
-    listing.write_text("".join(f"file '{part.resolve()}'\n" for part in parts))
-    try:
-        done = subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-loglevel", "error", "-f", "concat", "-safe", "0",
-                               "-i", str(listing), "-c", "copy", "-movflags", "+faststart", str(path)],
-                              capture_output=True, text=True, timeout=120)
-    finally:
-        listing.unlink(missing_ok=True)
-    if done.returncode != 0:
-        raise RuntimeError(f"joining the video's stretches failed: {done.stderr.strip()[-500:]}")
-
-
 def _has_joint(model: Any, name: str) -> bool:
     try:
         model.joint(name)
@@ -498,10 +447,3 @@ def _has_body(model: Any, name: str) -> bool:
     except KeyError:
         return False
     return True
-
-
-if __name__ == "__main__":  # a stretch of a video (see _RenderProcess): its job file in, its frame count out
-    import pickle
-    import sys
-
-    print(render_frames(*pickle.loads(pathlib.Path(sys.argv[1]).read_bytes())))
