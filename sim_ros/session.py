@@ -258,31 +258,6 @@ class RosSession:
         self.recorders.append(recorder)
         return recorder
 
-    def destroy_entities(self, entities: list[Any]) -> None:
-        """Destroy the node's subscriptions, service clients and publishers in ``entities``, on the spin thread
-        (directly once the spin has ended), as :meth:`destroy_subscription` does."""
-        from rclpy.client import Client
-        from rclpy.publisher import Publisher
-        from rclpy.subscription import Subscription
-
-        node = self.node
-
-        def destroy() -> None:
-            for entity in entities:
-                if isinstance(entity, Subscription):
-                    node.destroy_subscription(entity)
-                elif isinstance(entity, Client):
-                    node.destroy_client(entity)
-                elif isinstance(entity, Publisher):
-                    node.destroy_publisher(entity)
-                else:
-                    raise TypeError(f"cannot destroy a {type(entity).__name__}")
-
-        if self._thread.is_alive() and threading.current_thread() is not self._thread:
-            self.in_executor(destroy, what="destroying entities")
-        else:
-            destroy()
-
     def destroy_subscription(self, subscription: Any) -> None:
         """Destroy a subscription on the spin thread (destroyed from another thread while the executor
         waits on it, rclpy raises ``InvalidHandle`` there); directly once the spin has ended."""

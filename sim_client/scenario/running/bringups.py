@@ -5,13 +5,10 @@ parameters a run changed (``set_param`` steps) are set back to the values they h
 change at the end of that run, through its session (which has found their nodes: a new session took
 1.5-4 s to find a node's parameter services), and before the next run ``/sim/reset_simulation``
 (SCOPE_ALL) puts the scene back to its keyframe, ends the goals still running in ``/sim`` and restarts
-sim time, and with it the publication grid, at 0: the state of a bring-up just started paused. The runs
-of a bring-up share its client session (:attr:`Bringup.session`, one DDS participant that has found the
-nodes once: a new session per run took 2-6 s of each reused run's start-up to find them again) and its
-action clients; each run subscribes anew, after the reset, so its recordings start empty, and drops its
-subscriptions at its end. The session is closed while the nodes still run, before they are stopped. A
-bring-up is not reused after a run that ended in an error (a failed step, not a failed expectation), nor
-when it has exited: the next run starts its own.
+sim time, and with it the publication grid, at 0: the state of a bring-up just started paused. Each
+run has its own client session, so its recordings start empty. A bring-up is not reused after a run
+that ended in an error (a failed step, not a failed expectation), nor when it has exited: the next run
+starts its own.
 """
 
 from __future__ import annotations
@@ -22,7 +19,7 @@ import signal
 import sys
 import tempfile
 from dataclasses import dataclass, field
-from typing import Any, TextIO
+from typing import TextIO
 
 from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterValue
 from rclpy.parameter import Parameter
@@ -34,7 +31,7 @@ from sim_ros.session import RosSession, WaitTimeout
 from simulation_interfaces.msg import Result
 from simulation_interfaces.srv import ResetSimulation
 
-BringupKey = tuple[str, str, float, str]  # robot, scene, real-time factor, namespace
+BringupKey = tuple[str, str, float]  # robot, scene, real-time factor
 # /clock of a scenario's bring-up [Hz of sim time]: the rate the nodes on sim time need (their loops run
 # at 50 Hz or less), not /sim's default 100. Every node of a bring-up handles every /clock message in
 # Python, so at 100 Hz /clock cost a quarter of a lock-stepped run's CPU; the runner steps on /sim/step's answers.
@@ -102,8 +99,6 @@ class Bringup:
 
     key: BringupKey
     process: ChildProcess
-    session: RosSession  # the runs' client session (see the module's text)
-    clients: dict[str, Any] = field(default_factory=dict)  # action name -> the runs' action client
     runs: int = 0
     trusted: bool = True  # False after a run that ended in an error: not reused
     parameters: ParameterKeeper = field(default_factory=ParameterKeeper)
@@ -140,10 +135,7 @@ class Bringup:
         return target
 
     def stop(self) -> None:
-        """Close the runs' session, then stop the nodes; their last output goes to the log of the last run (and to
-        stderr after a crash). The session is closed first: a participant deleted while Fast DDS removes another
-        can deadlock (eProsima/Fast-DDS#6502, see the README's Known limits)."""
-        self.session.close()
+        """Stop the nodes; their last output goes to the log of the last run (and to stderr after a crash)."""
         code = self.process.stop()
         if self._last_folder is not None:
             self.copy_log(self._last_folder)
@@ -180,10 +172,9 @@ class Bringups:
             self._stream.write(text + "\n")
             self._stream.flush()
 
-    def acquire(self, scenario: Scenario, rtf: float, namespace: str = "") -> Bringup:
-        """The bring-up for a run of ``scenario`` at ``rtf`` under ``namespace`` ("" = the root): the running one,
-        reset, or a new one (with its session)."""
-        key: BringupKey = (scenario.robot, scenario.scene, rtf, namespace.strip("/"))
+    def acquire(self, scenario: Scenario, rtf: float, session: RosSession) -> Bringup:
+        """The bring-up for a run of ``scenario`` at ``rtf``: the running one, reset, or a new one."""
+        key: BringupKey = (scenario.robot, scenario.scene, rtf)
         current = self.current
         if current is not None and current.key == key and not current.trusted:
             self._say("the last run on the running bring-up ended in an error: starting a new one")
@@ -191,7 +182,7 @@ class Bringups:
             self._say(f"the running bring-up exited (code {current.process.process.returncode}): starting a new one")
         elif current is not None and current.key == key:
             try:
-                restored = current.prepare(current.session)
+                restored = current.prepare(session)
                 self._say(f"reusing the bring-up of {scenario.robot}/{scenario.scene} (run {current.runs + 1} on it): reset, "
                           f"sim time 0{', set back: ' + ', '.join(restored) if restored else ''}")
                 return current
@@ -200,13 +191,12 @@ class Bringups:
         self.stop()
         args = ["bringup", "--robot", scenario.robot, "--scene", scenario.scene, "--rtf", f"{rtf:g}", "--paused",
                 "--clock-rate", f"{CLOCK_RATE_HZ:g}"]
-        if namespace.strip("/"):
-            args += ["--namespace", namespace.strip("/")]
+        if session.namespace:
+            args += ["--namespace", session.namespace.strip("/")]
         self.started += 1
         log_dir = pathlib.Path(self._logs.name) / str(self.started)
         self._say(f"starting bring-up {self.started}: {' '.join(args)}")
-        process = ChildProcess(args, log_dir)
-        self.current = Bringup(key, process, RosSession("scenario_runner", use_sim_time=True, namespace=namespace))
+        self.current = Bringup(key, ChildProcess(args, log_dir))
         return self.current
 
     def stop(self) -> None:

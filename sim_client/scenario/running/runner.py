@@ -55,20 +55,15 @@ def run(scenario: Scenario, options: RunOptions = DEFAULT_OPTIONS, stream: TextI
             return run(scenario, options, stream, own)
     folder = run_folder(options.out, scenario.name)
     rtf = scenario.rtf if options.rtf is None else options.rtf
-    if bringups is None:
-        with RosSession("scenario_runner", use_sim_time=True, namespace=options.namespace) as session:
+    with RosSession("scenario_runner", use_sim_time=True, namespace=options.namespace) as session:
+        if bringups is None:
             run_ = ScenarioRun(scenario, session, options, folder, stream)
-            try:
-                result = run_.execute()
-                _write_artifacts(run_, result, stream)
-            finally:
-                run_.release()
+            result = run_.execute()
+            _write_artifacts(run_, result, stream)
             return result
-    wall0 = time.monotonic()
-    bringup = bringups.acquire(scenario, rtf, options.namespace)
-    session = bringup.session
-    run_ = ScenarioRun(scenario, session, options, folder, stream, parameters=bringup.parameters, clients=bringup.clients)
-    try:
+        wall0 = time.monotonic()
+        bringup = bringups.acquire(scenario, rtf, session)
+        run_ = ScenarioRun(scenario, session, options, folder, stream, parameters=bringup.parameters)
         reset_wall = time.monotonic() - wall0  # resetting a reused bring-up is part of the run's start-up
         result = run_.execute()
         result.startup_time += reset_wall
@@ -76,7 +71,7 @@ def run(scenario: Scenario, options: RunOptions = DEFAULT_OPTIONS, stream: TextI
         bringup.runs += 1
         bringup.trusted = not result.failures  # a run that ended in an error may leave what a reset does not mend
         if bringup.trusted:
-            try:  # now, through the session that has found the nodes this run changed
+            try:  # through this run's session, which has found the nodes it changed
                 bringup.parameters.restore(session)
             except (StepFailure, WaitTimeout) as error:
                 bringup.trusted = False
@@ -89,9 +84,8 @@ def run(scenario: Scenario, options: RunOptions = DEFAULT_OPTIONS, stream: TextI
             result.report["passed"] = False
             result.report["failures"] = result.failures
         _write_artifacts(run_, result, stream)
-    finally:
-        run_.release()  # its subscriptions, clients and publisher; the session and action clients stay the bring-up's
     return result
+
 
 def run_order(scenarios: Sequence[Scenario], options: RunOptions = DEFAULT_OPTIONS) -> list[int]:
     """The order to run ``scenarios`` in (indices): those of one robot, scene and pace together, the groups in the

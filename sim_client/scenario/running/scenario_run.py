@@ -49,11 +49,9 @@ class ScenarioRun:
     """One run of one scenario against nodes reachable through ``session``."""
 
     def __init__(self, scenario: Scenario, session: RosSession, options: RunOptions, folder: pathlib.Path,
-                 stream: TextIO = sys.stdout, parameters: ParameterKeeper | None = None,
-                 clients: dict[str, SimActionClient] | None = None) -> None:
+                 stream: TextIO = sys.stdout, parameters: ParameterKeeper | None = None) -> None:
         self.scenario = scenario
         self.session = session
-        self._shared_clients = clients  # action clients kept for the session's next runs (a reused bring-up's)
         self.options = options
         self.folder = folder
         self.rtf = scenario.rtf if options.rtf is None else options.rtf
@@ -110,12 +108,7 @@ class ScenarioRun:
         if self.mcap is not None:
             self.mcap.discover()
         for action in self.scenario.actions:
-            shared = self._shared_clients
-            client = shared.get(action) if shared is not None else None
-            if client is None:
-                client = ACTION_CLIENTS[action](self.session)
-                if shared is not None:
-                    shared[action] = client
+            client = ACTION_CLIENTS[action](self.session)
             try:
                 client.wait_for_server(SERVICE_WALL_S)
             except Exception as error:  # noqa: BLE001 - any failure to reach a server ends the run as a StepFailure
@@ -153,16 +146,6 @@ class ScenarioRun:
             self.reset(None)
             with contextlib.suppress(WaitTimeout):
                 self.session.wait_for(flowing, 0.2, "the recordings to receive the sim's streams")
-
-    def release(self) -> None:
-        """End what this run made on its session, which may serve the next run: its subscriptions (what they
-        recorded stays readable), service clients and ``/cmd_vel`` publisher. The action clients are kept."""
-        recorders = [r for r in (self.odom, self.joints, self.objects, self.locomotion, self.camera_images,
-                                 self.time.clock) if r is not None]
-        for recorder in recorders:
-            recorder.stop()
-        self.session.recorders = [r for r in self.session.recorders if all(r is not mine for mine in recorders)]
-        self.session.destroy_entities([self._reset, self._push, self.time.step_client, self._cmd_vel])
 
     # ----- time passing ----------------------------------------------------------------
     def advance(self, dt: float) -> None:

@@ -67,11 +67,6 @@ class SimTime:
         self._sim_now = 0.0
         self._pace_anchor: tuple[float, float] | None = None  # (wall [s], sim [s]) that pacing counts from
 
-    @property
-    def step_client(self) -> Any:
-        """The ``/sim/step`` client (destroyed with the run's other entities when its session serves on)."""
-        return self._step
-
     def now(self) -> float:
         """The latest sim time seen on /clock or in a /sim answer [s]."""
         latest = self.clock.latest
