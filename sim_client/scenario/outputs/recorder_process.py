@@ -3,8 +3,9 @@
 In the runner's process, every message of every topic (~7000 for walk_2m, 9.4 s of sim time) went through the
 runner's Python executor, which rebuilds its wait set on each wake-up: 1.4 s of CPU, on the runner's thread.
 Here a child takes them on rclpy's C++ events executor (0.6-0.7 s of CPU for the same run), and the runner's
-executor handles only what the run reads. On 2 cores, both busy while a lock-stepped run records, this lowered
-the CPU a recorded run costs more than its wall time (see the README's timings).
+executor handles only what the run reads. It halved the recording's CPU; the wall time of a lock-stepped run
+barely moved, both cores being busy either way (see the README's timings). The child looks for new topics by
+itself; the runner only asks it to look at once where topics are known to appear (once the nodes answer).
 
 The runner holds a :class:`RecordingProcess`; the child (``python -m sim_client.scenario.outputs.recorder_process``)
 runs :class:`~sim_client.scenario.outputs.recording.McapRecorder` on a session of its own and answers one JSON line

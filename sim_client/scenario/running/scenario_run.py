@@ -91,7 +91,6 @@ class ScenarioRun:
         self._step_label = ""
         self._wall0 = 0.0  # wall time [s] the run started at, set by execute()
         self.mcap: RecordingProcess | None = None  # recording.mcap, written by a process of its own
-        self._last_discover = 0.0
         self._kept_parameters = parameters  # the bring-up's start-up values, read before a node's first change
 
     def now(self) -> float:
@@ -187,9 +186,6 @@ class ScenarioRun:
                     del self.cancel_triggers[goal_id]
                     self.progress.say(f"        cancel {goal_id} ({trigger.describe()}) at t={self._elapsed():.2f} s")
                     handle.cancel()
-        if self.mcap is not None and time.monotonic() - self._last_discover > 1.0:
-            self._last_discover = time.monotonic()
-            self.mcap.discover()
         self.progress.update(self._status_line())
 
     def _status_line(self) -> str:
