@@ -31,6 +31,8 @@ import tempfile  # noqa: E402
 import time  # noqa: E402
 
 import pytest  # noqa: E402
+from xdist.scheduler import LoadFileScheduling  # noqa: E402
+from xdist.workermanage import WorkerController  # noqa: E402
 
 HANG_DIR_VARIABLE = "SIM_TEST_HANG_DIR"  # the folder where a hung test's stacks are written (workers inherit it)
 TEST_WATCHDOG_S = float(os.environ.get("SIM_TEST_WATCHDOG_S", "600"))  # [s] wall: a test (set-up to tear-down) longer is hung
@@ -157,6 +159,43 @@ def pytest_handlecrashitem(crashitem: str, report: pytest.TestReport, sched: obj
         report.longrepr = f"{report.longrepr}: the watchdog ended it (a freeze), so it runs again on a new worker{note}"
     else:
         report.longrepr = f"{report.longrepr}{note}"
+
+
+class FileSchedulingThatRecovers(LoadFileScheduling):
+    """xdist's ``--dist loadfile``, with a crashed worker's unfinished files handed on to the new worker.
+
+    xdist 3.8 puts every file the crashed worker was given back on the queue, finished ones too: a new worker handed
+    a finished file is sent no test and never another. And a new worker is handed a single file: when that holds
+    one test, the worker waits for a second (it runs a test only once it knows the next one, or is told to stop)
+    that never comes. Both left ``make test`` waiting for ever after a freeze. Here the crashed worker's unfinished
+    files go back first in the queue and the finished ones are dropped, and a worker that joins later is handed work
+    twice, as the first workers are.
+    """
+
+    def remove_node(self, node: WorkerController) -> str | None:
+        workload = self.assigned_work.pop(node)
+        unfinished = {scope: tests for scope, tests in workload.items() if not all(tests.values())}
+        if not unfinished:
+            return None
+        crashitem = next(nodeid for tests in unfinished.values() for nodeid, done in tests.items() if not done)
+        for scope in reversed(unfinished):
+            self.workqueue[scope] = unfinished[scope]
+            self.workqueue.move_to_end(scope, last=False)
+        for other in self.assigned_work:
+            self._reschedule(other)
+        return crashitem
+
+    def schedule(self) -> None:
+        joined_later = self.collection is not None
+        super().schedule()
+        if joined_later:
+            for node in self.nodes:
+                self._reschedule(node)
+
+
+def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> LoadFileScheduling | None:
+    """``--dist loadfile`` (``make test``) schedules with :class:`FileSchedulingThatRecovers`; others as xdist does."""
+    return FileSchedulingThatRecovers(config, log) if config.getvalue("dist") == "loadfile" else None  # type: ignore[arg-type]
 
 
 def pytest_report_teststatus(report: pytest.TestReport, config: pytest.Config) -> tuple[str, str, str] | None:

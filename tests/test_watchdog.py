@@ -33,16 +33,23 @@ FROZEN_FILE = textwrap.dedent('''
 ''')
 
 
-def _run_frozen_suite(tmp_path: pathlib.Path, every_time: bool) -> tuple[subprocess.CompletedProcess[str], list[int]]:
+def _run_frozen_suite(tmp_path: pathlib.Path, every_time: bool, workers: int = 2,
+                      files_around: int = 0) -> tuple[subprocess.CompletedProcess[str], list[int]]:
+    """The frozen file between ``files_around`` files of one passing test before it and as many after it."""
     (tmp_path / "test_frozen.py").write_text(FROZEN_FILE)
+    files = [str(tmp_path / "test_frozen.py")]
+    for index in range(files_around):
+        for side in ("before", "after"):
+            (tmp_path / f"test_{side}_{index}.py").write_text("def test_passes():\n    pass\n")
+        files = [str(tmp_path / f"test_before_{index}.py"), *files, str(tmp_path / f"test_after_{index}.py")]
     env = dict(os.environ, SIM_TEST_WATCHDOG_S="3", FREEZE_MARK=str(tmp_path / "mark"),
                CHILD_PIDS=str(tmp_path / "children"), FREEZE_EVERY_TIME="1" if every_time else "")
     env.pop("SIM_TEST_RUN", None)  # a run of its own, with its own tag for its workers' processes
     env.pop("PYTEST_XDIST_WORKER", None)
     env.pop("SIM_TEST_HANG_DIR", None)
     command = [sys.executable, "-m", "pytest", "-p", "tests.conftest", "-c", os.devnull, "--rootdir", str(tmp_path),
-               "-p", "no:cacheprovider", "-n", "2", "--dist", "loadfile", "--max-worker-restart", "2",
-               str(tmp_path / "test_frozen.py")]
+               "-p", "no:cacheprovider", "-n", str(workers), "--dist", "loadfile", "--no-loadscope-reorder",
+               "--max-worker-restart", "2", *files]
     finished = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True, timeout=240)
     children = [int(line) for line in (tmp_path / "children").read_text().split()]
     return finished, children
@@ -63,6 +70,16 @@ def test_a_test_that_freezes_once_runs_again_and_passes_and_its_workers_processe
     assert "ran longer than 3 s" in finished.stdout  # the freeze's stacks are printed
     assert "test_frozen.py::test_freezes" in finished.stdout.split("frozen tests that ran again", 1)[1]
     assert len(children) == 2 and not any(_alive(pid) for pid in children), children
+
+
+def test_a_worker_that_froze_after_finishing_other_files_hands_only_its_unfinished_ones_to_the_new_worker(tmp_path):
+    # One worker runs every file: the frozen one comes after finished files and before an unstarted one. xdist 3.8
+    # alone handed the new worker a finished file (no test) and waited for ever (tests/conftest.py says why).
+    finished, children = _run_frozen_suite(tmp_path, every_time=False, workers=1, files_around=2)
+    summary = finished.stdout.strip().splitlines()[-1]
+    assert finished.returncode == 0, finished.stdout[-3000:]
+    assert "7 passed, 1 rerun" in summary, summary
+    assert not any(_alive(pid) for pid in children), children
 
 
 def test_a_test_that_freezes_again_fails_the_run(tmp_path):
