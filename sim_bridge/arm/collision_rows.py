@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
-import mink
+from typing import TYPE_CHECKING
+
 import mujoco
 import numpy as np
+
+if TYPE_CHECKING:
+    import mink
 
 
 class CollisionRows:

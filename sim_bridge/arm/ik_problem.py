@@ -8,9 +8,9 @@ arm, gripper, free objects) every DoF but the arm's is frozen by an equality con
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import daqp
-import mink
 import mujoco
 import numpy as np
 
@@ -21,12 +21,17 @@ from sim_bridge.arm.types import ArmControllerConfig
 from sim_bridge.errors import SimError
 from sim_bridge.state import Pose
 
+if TYPE_CHECKING:
+    import mink
+
 OFFLINE_DT = 0.1  # [s] step length of offline solves
 OFFLINE_STEP = 0.04  # [rad] largest joint change per offline step
 
 
 def _se3(pose: Pose) -> mink.SE3:
     """The pose as a mink transform (its quaternion is already normalised by :func:`~sim_bridge.arm.poses.validate_pose`)."""
+    import mink
+
     return mink.SE3(np.concatenate((np.asarray(pose.orientation_wxyz, dtype=float), np.asarray(pose.position, dtype=float))))
 
 
@@ -62,6 +67,10 @@ class IKProblem:
         config: ArmControllerConfig,
         velocity_limited: bool,
     ) -> None:
+        # mink (with qpsolvers and scipy.sparse, ~0.35 CPU-s) is imported by the first problem built, not with this
+        # module: the action servers import the goal types beside it and never solve IK (it runs inside /sim).
+        import mink
+
         self.info = info
         self.config = config
         self.model = model

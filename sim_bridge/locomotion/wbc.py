@@ -33,7 +33,6 @@ from typing import NamedTuple
 import daqp
 import mujoco
 import numpy as np
-from scipy.linalg import lapack
 
 from robot_models.biped import BipedDescription
 from sim_bridge.locomotion.external import ExternalContacts
@@ -111,6 +110,11 @@ class WholeBodyQP:
     """
 
     def __init__(self, model: mujoco.MjModel, biped: BipedDescription) -> None:
+        # scipy.linalg (~0.2 CPU-s to import) comes with the first controller built, not with this module: the action
+        # servers import the goal types beside it and never balance a robot (that runs inside /sim).
+        from scipy.linalg import lapack
+
+        self._dposv = lapack.dposv  # Cholesky solve of M_EE X = B [LAPACK]
         self.nv = model.nv
         self.pelvis = model.body(biped.base_body).id
         self.mass = robot_mass(model, self.pelvis)  # the objects of the scene are not the robot's
@@ -287,7 +291,7 @@ class WholeBodyQP:
         np.negative(bias[base], out=elim[base_rows, nz])
         np.subtract(self._servo_torques(data), bias[servo], out=elim[servo_rows, nz])
         self._mass_ee[:] = mass.take(self._mass_ee_flat).reshape(ne, ne)
-        _, solved, info = lapack.dposv(self._mass_ee, elim, overwrite_a=1, overwrite_b=1)
+        _, solved, info = self._dposv(self._mass_ee, elim, overwrite_a=1, overwrite_b=1)
         if info != 0:  # M_EE not positive definite: only with a broken state (e.g. NaN)
             return self._fallback(FACTORISATION_FAILED, bias)
         q_map, q_offset = self._q_map, self._q_offset
