@@ -22,6 +22,7 @@ import threading
 from typing import Any
 
 import robot_models
+from nodes.devices import devices_of
 from nodes.launch.result_keeper import ResultKeeper
 from nodes.servers.actions import ACTION_TYPES, SERVED_BY
 from sim_ros.names import MAX_STREAM_RATE_HZ
@@ -75,16 +76,8 @@ def commands_for(options: argparse.Namespace, ros_args: list[str]) -> list[list[
     servers = [["arm_server", "--ros-args", "-p", f"robot:={options.robot}", *scene]]
     if robot_models.walks(options.robot):
         servers.append(["locomotion_server", "--ros-args", "-p", f"robot:={options.robot}", *scene])
-    sensors = robot_models.sensors_of(options.robot)
-    if sensors.battery is not None:
-        servers.append(["power_node", "--ros-args", "-p", f"robot:={options.robot}"])
-    if sensors.wrists:
-        servers.append(["hand_sensors", "--ros-args", "-p", f"robot:={options.robot}"])
-    cameras = robot_models.cameras_of(options.robot)
-    if cameras:
-        servers.append(["camera_node", "--ros-args", "-p", f"robot:={options.robot}"])
-    if any(camera.tilt_joint is not None for camera in cameras):
-        servers.append(["head_node", "--ros-args", "-p", f"robot:={options.robot}"])
+    if devices_of(options.robot):  # /power, /hand_sensors, /camera, /head: one process (nodes/devices/container.py)
+        servers.append(["device_nodes", "--ros-args", "-p", f"robot:={options.robot}"])
     if options.foxglove:
         servers.append(["foxglove_bridge", "--ros-args", "-p", f"robot:={options.robot}",
                         "-p", f"host:={options.foxglove_host}", "-p", f"port:={options.foxglove_port}"])

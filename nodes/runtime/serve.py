@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+import threading
 from collections.abc import Callable
 
 import rclpy
@@ -22,6 +23,8 @@ NodeFactory = Callable[[str, str, list[Parameter]], Node]  # (robot, scene ("" =
 SCENE_PARAMETER = ParameterSpec("scene", "", "scene of the running /sim (empty = the one /sim reports when asked for "
                                 "its robot, else the robot's default)", read_only=True)
 BeforeExit = Callable[[Node, Executor], None]  # runs while the context is still up, before the node is destroyed
+Served = tuple[Node, bool]  # a node, and whether it spins on the events executor (else on a ServerExecutor)
+NodesFactory = Callable[[str, str, list[Parameter]], list[Served]]  # (robot, scene, overrides) -> the nodes of a process
 
 
 def spin_server(node_factory: NodeFactory, node_name: str, args: list[str] | None,
@@ -51,7 +54,8 @@ def spin_server(node_factory: NodeFactory, node_name: str, args: list[str] | Non
     except StartupError as error:
         return fail(program, error)
     try:
-        return _serve(node_factory, node_name, argv, before_exit, events)
+        return _serve(lambda robot, scene, overrides: [(node_factory(robot, scene, overrides), events)], node_name, argv,
+                      before_exit)
     except StartupError as error:
         return fail(program, error)
     except KeyboardInterrupt:  # interrupted while starting up (asking /sim, building the node)
@@ -60,8 +64,31 @@ def spin_server(node_factory: NodeFactory, node_name: str, args: list[str] | Non
         rclpy.try_shutdown()
 
 
-def _serve(node_factory: NodeFactory, node_name: str, argv: list[str], before_exit: BeforeExit | None,
-           events: bool) -> int:
+def spin_nodes(nodes_factory: NodesFactory, process_name: str, args: list[str] | None,
+               help_page: Callable[[str], str]) -> int:
+    """``main`` of a process of several nodes (as a ROS 2 component container holds them): as :func:`spin_server`,
+    the nodes that spin on the events executor share one in the main thread, the others a :class:`ServerExecutor`
+    in a second thread. Each node keeps its own name, parameters and services."""
+    argv = sys.argv if args is None else args
+    program = program_name(argv)
+    if help_requested(argv):
+        sys.stdout.write(help_page(program))
+        return 0
+    try:
+        init_ros(argv, own_signals=True)
+    except StartupError as error:
+        return fail(program, error)
+    try:
+        return _serve(nodes_factory, process_name, argv, None)
+    except StartupError as error:
+        return fail(program, error)
+    except KeyboardInterrupt:
+        return 0
+    finally:
+        rclpy.try_shutdown()
+
+
+def _serve(nodes_factory: NodesFactory, node_name: str, argv: list[str], before_exit: BeforeExit | None) -> int:
     overrides = sim_time_overrides(argv)
     probe = Node(f"{node_name}_setup", parameter_overrides=overrides)
     try:
@@ -83,26 +110,45 @@ def _serve(node_factory: NodeFactory, node_name: str, argv: list[str], before_ex
     stop = StopRequest.install()
     map_large_buffers()
     try:
-        node = node_factory(robot, scene, overrides)
+        served = nodes_factory(robot, scene, overrides)
     except robot_models.RobotModelError as error:
         raise StartupError(str(error)) from None
     release_build_memory()
-    drop_qos_event_handlers(node)
-    guard_parameter_services(node)
-    executor: Executor = events_executor() if events else ServerExecutor(num_threads=4)
-    executor.add_node(node)
-    # Spun in short waits, so SIGINT/SIGTERM is seen within 0.2 s while the ROS context stays up: the
-    # running goals can still be ended and their results sent.
+    for node, _ in served:
+        drop_qos_event_handlers(node)
+        guard_parameter_services(node)
+    spinners: list[tuple[Executor, Node]] = []
+    for events in (True, False):
+        nodes = [node for node, on_events in served if on_events == events]
+        if nodes:
+            executor: Executor = events_executor() if events else ServerExecutor(num_threads=4)
+            for node in nodes:
+                executor.add_node(node)
+            spinners.append((executor, nodes[0]))
+
+    def spin(executor: Executor, node: Node) -> None:
+        # Spun in short waits, so SIGINT/SIGTERM is seen within 0.2 s while the ROS context stays up: the
+        # running goals can still be ended and their results sent.
+        try:
+            while not stop.requested and rclpy.ok():
+                spin_once_logging(executor, node)
+        except ExternalShutdownException:
+            pass
+
+    others = [threading.Thread(target=spin, args=spinner, name="executor", daemon=True) for spinner in spinners[1:]]
     try:
-        while not stop.requested and rclpy.ok():
-            spin_once_logging(executor, node)
-    except ExternalShutdownException:
-        pass
+        for thread in others:
+            thread.start()
+        spin(*spinners[0])
     finally:
+        for thread in others:
+            thread.join(timeout=1.0)
         with bounded_cleanup():
             if before_exit is not None and rclpy.ok():
-                before_exit(node, executor)
-            destroy_node_fully(node)
-            executor.shutdown()
+                before_exit(served[0][0], spinners[0][0])
+            for node, _ in served:
+                destroy_node_fully(node)
+            for executor, _ in spinners:
+                executor.shutdown()
             rclpy.try_shutdown()
     end_process(0)

@@ -1,0 +1,43 @@
+"""``device_nodes``: the robot's device nodes in one process (as the bring-up runs them), each with its own name,
+parameters and services; ``bringup`` starts it instead of one process per device."""
+
+from __future__ import annotations
+
+import pytest
+
+from nodes.devices import devices_of
+from nodes.launch.bringup import commands_for, parse_args
+from sim_ros.processes import BIN
+from tests.ros.processes import running
+
+
+def test_each_robot_has_the_devices_of_its_model():
+    assert devices_of("g1") == ["power", "hand_sensors", "camera", "head"]
+    assert devices_of("panda") == ["hand_sensors", "camera"]  # the wrist sensor and the scene camera
+
+
+@pytest.mark.parametrize("robot", ["g1", "panda"])
+def test_a_bringup_runs_its_devices_in_one_process(robot):
+    executables = [command[0] for command in commands_for(parse_args(["--robot", robot]), [])]
+    assert executables.count("device_nodes") == 1
+    assert not {"power_node", "hand_sensors", "camera_node", "head_node"} & set(executables), executables
+
+
+def test_the_g1_devices_serve_their_own_parameters_from_one_process(client):
+    with running([str(BIN / "device_nodes"), "--ros-args", "-p", "robot:=g1",
+                  "-p", "power:battery_low_threshold:=25.0"]) as process:
+        names = devices_of("g1")
+        client.wait_for(lambda: all(client.parameters(name).services_are_ready() for name in names) or not process.alive(),
+                        60.0, f"the parameter services of {names}")
+        assert process.alive(), process.output()[-2000:]
+        values = {}
+        for node, parameter in (("power", "battery_low_threshold"), ("head", "head_tilt_angle"),
+                                ("camera", "camera_exposure"), ("hand_sensors", "calibration_window")):
+            answer = client.until_answered(lambda n=node, p=parameter: client.parameters(n).get_parameters([p]), 30.0,
+                                           f"get {node} {parameter}")
+            values[node] = answer.values[0].double_value  # each of these is a double
+        assert values["power"] == pytest.approx(25.0), "a node-prefixed -p reaches that node only"
+        assert values["head"] == pytest.approx(0.0) and values["camera"] > 0 and values["hand_sensors"] > 0, values
+        ok, reason = client.set_parameter("head", "head_tilt_angle", 2.0)
+        assert not ok and "out of range" in reason, reason  # each node keeps its ranges and reasons
+        assert process.alive()
