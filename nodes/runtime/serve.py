@@ -42,26 +42,13 @@ def spin_server(node_factory: NodeFactory, node_name: str, args: list[str] | Non
     than half as much per /clock message (see :data:`nodes.runtime.executor`'s measures). For nodes
     whose callbacks are short and that run no action server (the device nodes).
     """
-    argv = sys.argv if args is None else args
-    program = program_name(argv)
-    if help_requested(argv):
-        sys.stdout.write(help_page(program) if help_page is not None else
-                         f"usage: {program} [-h] [--ros-args ...]\n\nThe /{node_name} node; "
-                         f"`ros2 param describe /{node_name} NAME` shows its parameters.\n")
-        return 0
-    try:
-        init_ros(argv, own_signals=True)
-    except StartupError as error:
-        return fail(program, error)
-    try:
-        return _serve(lambda robot, scene, overrides: [(node_factory(robot, scene, overrides), events)], node_name, argv,
-                      before_exit)
-    except StartupError as error:
-        return fail(program, error)
-    except KeyboardInterrupt:  # interrupted while starting up (asking /sim, building the node)
-        return 0
-    finally:
-        rclpy.try_shutdown()
+    def default_help(program: str) -> str:
+        return (f"usage: {program} [-h] [--ros-args ...]\n\nThe /{node_name} node; "
+                f"`ros2 param describe /{node_name} NAME` shows its parameters.\n")
+
+    return _main(args, help_page or default_help,
+                 lambda argv: _serve(lambda robot, scene, overrides: [(node_factory(robot, scene, overrides), events)],
+                                     node_name, argv, before_exit))
 
 
 def spin_nodes(nodes_factory: NodesFactory, process_name: str, args: list[str] | None,
@@ -69,6 +56,12 @@ def spin_nodes(nodes_factory: NodesFactory, process_name: str, args: list[str] |
     """``main`` of a process of several nodes (as a ROS 2 component container holds them): as :func:`spin_server`,
     the nodes that spin on the events executor share one in the main thread, the others a :class:`ServerExecutor`
     in a second thread. Each node keeps its own name, parameters and services."""
+    return _main(args, help_page, lambda argv: _serve(nodes_factory, process_name, argv, None))
+
+
+def _main(args: list[str] | None, help_page: Callable[[str], str], serve: Callable[[list[str]], int]) -> int:
+    """``--help`` without ROS; else ROS up, ``serve(argv)``, ROS down. A start-up error ends it with one line and
+    code 2; Ctrl-C while starting up (asking /sim, building the nodes) with code 0."""
     argv = sys.argv if args is None else args
     program = program_name(argv)
     if help_requested(argv):
@@ -79,7 +72,7 @@ def spin_nodes(nodes_factory: NodesFactory, process_name: str, args: list[str] |
     except StartupError as error:
         return fail(program, error)
     try:
-        return _serve(nodes_factory, process_name, argv, None)
+        return serve(argv)
     except StartupError as error:
         return fail(program, error)
     except KeyboardInterrupt:
