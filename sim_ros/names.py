@@ -34,7 +34,7 @@ CMD_VEL_STAMPED_TOPIC = "cmd_vel_stamped"
 
 
 def wrench_topic(sensor: str) -> str:
-    """A force/torque sensor's wrench: a foot's from ``/sim``, a wrist's (calibrated) from ``/hand_sensors``."""
+    """A force/torque sensor's wrench, from ``/sim``: a foot's, or a wrist's less the offset ``/hand_sensors`` calibrated."""
     return f"{sensor}/wrench"
 
 
@@ -50,6 +50,8 @@ def camera_info_topic(camera: str) -> str:
 SKILL_COMMAND_TOPIC = "sim/skill_command"  # action servers -> /sim: START, CANCEL, UPDATE of a goal
 SKILL_STATE_TOPIC = "sim/skill_state"  # /sim -> action servers: each goal's status, feedback and result
 HAND_SENSORS_TOPIC = "sim/hand_sensors"  # /sim -> /hand_sensors: raw wrist force/torque, hand speed and contact
+HAND_OFFSETS_TOPIC = "sim/hand_sensors/offsets"  # /hand_sensors -> /sim: the calibrated offsets (latched; wrenches only)
+HAND_OFFSETS_APPLIED_TOPIC = "sim/hand_sensors/offsets_applied"  # /sim -> /hand_sensors: the offsets /sim now subtracts (latched)
 BATTERY_TOPIC = "sim/battery"  # /sim -> /power: the battery drained in the control step
 BATTERY_CONFIG_TOPIC = "sim/battery_config"  # /power -> /sim: the battery model's settings (latched)
 

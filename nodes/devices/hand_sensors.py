@@ -1,12 +1,15 @@
-"""The ``/hand_sensors`` node: calibrated wrist force/torque on ``/<wrist>/wrench`` and ``/calibrate_hand_sensors``.
+"""The ``/hand_sensors`` node: the wrist force/torque sensors' calibration, ``/calibrate_hand_sensors``.
 
-``/sim`` publishes each wrist sensor's raw reading (the true wrench plus a seeded offset, a slow drift
-and noise, as a real F/T sensor reads) with how fast the hand moves and whether it touches anything.
-This node publishes ``raw - offset`` as ``geometry_msgs/WrenchStamped`` in the sensor's frame (the
-offset is zero until calibrated), while anyone subscribes to them. ``/calibrate_hand_sensors``
-averages every sensor at rest over a window of sim time and keeps that as the offset: afterwards a
-hand at rest reads ~0, and a load it holds reads as its weight. It is refused, with the reason, while
-a hand moves or touches something.
+``/sim`` reads each wrist sensor as a real F/T sensor reads (the true wrench plus a seeded offset, a slow
+drift and noise) and publishes ``raw - offset`` as ``geometry_msgs/WrenchStamped`` in the sensor's frame on
+``/<wrist>/wrench`` while anyone subscribes (the offset is zero until calibrated), as it publishes the
+soles'. This node owns the offset, as a device driver owns its settings: ``/calibrate_hand_sensors``
+averages every sensor's raw reading (``/sim/hand_sensors``, with how fast the hand moves and whether it
+touches anything) at rest over a window of sim time, sends the average to ``/sim`` (latched, so a ``/sim``
+that starts again takes it), and answers once ``/sim`` subtracts it: afterwards a hand at rest reads ~0,
+and a load it holds reads as its weight. It is refused, with the reason, while a hand moves or touches
+something. (Until 28 November this node republished every reading itself: a recorded G1 run spent
+~1.2 CPU-s in its Python executor doing so.)
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from geometry_msgs.msg import Wrench, WrenchStamped
+from geometry_msgs.msg import Wrench
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -30,11 +33,10 @@ from nodes.runtime.parameters import ParameterSpec, declare
 from nodes.runtime.serve import spin_server
 from sim_interfaces.msg import HandSensors
 from sim_interfaces.srv import CalibrateHandSensors
-from sim_ros.names import HAND_SENSORS_TOPIC, wrench_topic
+from sim_ros.names import HAND_OFFSETS_APPLIED_TOPIC, HAND_OFFSETS_TOPIC, HAND_SENSORS_TOPIC, LATCHED, wrench_topic
 from sim_ros.stamps import seconds_of
 
 NODE_NAME = "hand_sensors"
-WATCH_PERIOD_S = 1.0  # wall seconds between checks whether anyone needs the wrist readings
 NO_DATA_TIMEOUT_S = 10.0  # wall seconds a calibration waits for /sim's readings to cover its window
 
 PARAMETERS = (
@@ -66,7 +68,7 @@ class _Calibration:
 
 
 class HandSensorsNode(Node):
-    """Calibrates and republishes the wrist force/torque sensors of the robot of ``/sim``."""
+    """Calibrates the wrist force/torque sensors of the robot of ``/sim`` (which publishes them, less the offsets)."""
 
     def __init__(self, robot: str, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
@@ -78,27 +80,24 @@ class HandSensorsNode(Node):
         self._offsets = np.zeros((len(wrists), 6))
         self._lock = threading.Lock()
         self._calibration: _Calibration | None = None
-        self._outputs = {wrist.name: (self.create_publisher(WrenchStamped, wrench_topic(wrist.name), 10), WrenchStamped())
-                         for wrist in wrists}
+        self._frames = [wrist.frame for wrist in wrists]
         self._group = ReentrantCallbackGroup()
-        self._readings: Any = None  # the subscription to /sim's raw readings, while anyone needs them
+        self._readings: Any = None  # the subscription to /sim's raw readings, while a calibration runs
+        # The offsets to /sim (latched), and /sim's word that it subtracts them.
+        self._offsets_pub = self.create_publisher(HandSensors, HAND_OFFSETS_TOPIC, LATCHED)
+        self._applied: tuple[np.ndarray, Future] | None = None  # offsets sent, done once /sim applies them
+        self.create_subscription(HandSensors, HAND_OFFSETS_APPLIED_TOPIC, self._on_applied, LATCHED,
+                                 callback_group=self._group)
+        self._send_offsets(self._offsets)
         self.create_service(CalibrateHandSensors, "calibrate_hand_sensors", self._on_calibrate, callback_group=self._group)
-        # /sim builds the raw readings only while someone subscribes: subscribe only while our wrenches have a
-        # subscriber or a calibration runs (checked every wall second), so an idle robot costs nothing.
-        self.create_timer(WATCH_PERIOD_S, self._watch_demand, callback_group=self._group,
-                          clock=Clock(clock_type=ClockType.STEADY_TIME))
-        self.get_logger().info(f"serving {', '.join(wrench_topic(n) for n in self._names)} and /calibrate_hand_sensors")
+        self.get_logger().info(f"calibrating {', '.join(wrench_topic(n) for n in self._names)} (/sim publishes them): "
+                               "/calibrate_hand_sensors")
 
     def _param(self, name: str) -> float:
         return float(self.get_parameter(name).value)
 
-    def _watch_demand(self) -> None:
-        with self._lock:
-            calibrating = self._calibration is not None and not self._calibration.done.done()
-        wanted = calibrating or any(publisher.get_subscription_count() > 0 for publisher, _ in self._outputs.values())
-        self._subscribe(wanted)
-
     def _subscribe(self, wanted: bool) -> None:
+        """/sim builds the raw readings only while someone subscribes: this node does only while it calibrates."""
         with self._lock:
             if wanted and self._readings is None:
                 self._readings = self.create_subscription(HandSensors, HAND_SENSORS_TOPIC, self._on_readings,
@@ -107,22 +106,32 @@ class HandSensorsNode(Node):
                 self.destroy_subscription(self._readings)
                 self._readings = None
 
+    def _send_offsets(self, offsets: np.ndarray) -> Future:
+        """Publish ``offsets`` (one row of 6 per sensor) to /sim; the future is done once /sim echoes them."""
+        msg = HandSensors(names=list(self._names), frame_ids=list(self._frames), wrenches=[Wrench() for _ in self._names])
+        for out, values in zip(msg.wrenches, offsets, strict=True):
+            _set(out, values)
+        done = Future()
+        with self._lock:
+            self._applied = (np.array(offsets, dtype=float), done)
+        self._offsets_pub.publish(msg)
+        return done
+
+    def _on_applied(self, msg: HandSensors) -> None:
+        if list(msg.names) != self._names:
+            return  # another robot's sensors
+        echoed = np.array([_vector(w) for w in msg.wrenches])
+        with self._lock:
+            if self._applied is not None and np.array_equal(echoed, self._applied[0]) and not self._applied[1].done():
+                self._applied[1].set_result(True)
+
     def _on_readings(self, msg: HandSensors) -> None:
-        raw = np.array([_vector(w) for w in msg.wrenches]) if msg.wrenches else np.zeros((0, 6))
         if list(msg.names) != self._names:
             return  # another robot's sensors: not ours
-        # Published under the lock: once a calibration has stored its offset (and answered), no reading
-        # corrected by the old offset is published any more.
         with self._lock:
             calibration = self._calibration
-            for i, name in enumerate(self._names):
-                publisher, out = self._outputs[name]
-                out.header = msg.header
-                out.header.frame_id = msg.frame_ids[i]
-                _set(out.wrench, raw[i] - self._offsets[i])
-                publisher.publish(out)
         if calibration is not None and not calibration.done.done():
-            self._sample(calibration, msg, raw)
+            self._sample(calibration, msg, np.array([_vector(w) for w in msg.wrenches]))
 
     def _sample(self, calibration: _Calibration, msg: HandSensors, raw: np.ndarray) -> None:
         linear, angular = self._param("rest_linear_speed"), self._param("rest_angular_speed")
@@ -172,12 +181,25 @@ class HandSensorsNode(Node):
             reason = await wait_parked(calibration.done)
         finally:
             self.destroy_timer(timer)
+            self._subscribe(False)
         if reason:
             response.message = f"not calibrated: {reason}"
             return response
         offsets = np.mean(calibration.samples, axis=0)
         with self._lock:
             self._offsets = offsets
+        # Answered once /sim subtracts the new offsets: no wrench published after the answer has the old ones.
+        applied = self._send_offsets(offsets)
+        timer = self.create_timer(NO_DATA_TIMEOUT_S, lambda: applied.done() or applied.set_result(False),
+                                  clock=Clock(clock_type=ClockType.STEADY_TIME))
+        try:
+            taken = await wait_parked(applied)
+        finally:
+            self.destroy_timer(timer)
+        if not taken:
+            response.message = (f"not calibrated: /sim did not take the offsets within {NO_DATA_TIMEOUT_S:g} s (they are "
+                                "sent latched: a /sim that starts takes them)")
+            return response
         response.success = True
         response.names = list(self._names)
         response.offsets = [Wrench() for _ in self._names]

@@ -56,6 +56,8 @@ from sim_interfaces.srv import SetBatteryLevel
 from sim_ros.names import (
     BATTERY_CONFIG_TOPIC,
     BATTERY_TOPIC,
+    HAND_OFFSETS_APPLIED_TOPIC,
+    HAND_OFFSETS_TOPIC,
     HAND_SENSORS_TOPIC,
     IMU_TOPIC,
     LATCHED,
@@ -92,7 +94,7 @@ T = TypeVar("T")
 
 @dataclass(frozen=True)
 class _Foot:
-    """A sole's wrench stream: its index in the layout, frame, publisher and template (None: publish messages)."""
+    """A sole's or a wrist's wrench stream: its index in the layout, frame, publisher and template (None: publish messages)."""
 
     index: int
     frame: str
@@ -141,6 +143,15 @@ class SensorStreams:
         n = len(layout.wrists)  # the hands' readings, gathered here at each publish
         self._hand_wrenches, self._hand_linear, self._hand_angular = np.zeros((n, 6)), np.zeros(n), np.zeros(n)
         self._hand_contact = np.zeros(n, dtype=bool)
+        # Each wrist's calibrated wrench (raw - the offset /hand_sensors calibrated; zero until then), on /<wrist>/wrench.
+        self._wrists = [_Foot(k, wrist.frame, node.create_publisher(WrenchStamped, wrench_topic(wrist.name), qos),
+                              self._template(functools.partial(WrenchStampedTemplate, wrist.frame), wrench_topic(wrist.name)))
+                        for k, wrist in enumerate(layout.wrists)]
+        self._hand_offsets = np.zeros((n, 6))
+        if layout.wrists:
+            self._offsets_applied_pub = node.create_publisher(HandSensors, HAND_OFFSETS_APPLIED_TOPIC, LATCHED)
+            node.create_subscription(HandSensors, HAND_OFFSETS_TOPIC, self._on_hand_offsets, LATCHED,
+                                     callback_group=MutuallyExclusiveCallbackGroup())
         self._publish_static_frames()
         if battery is not None:
             self._battery_pub = node.create_publisher(BatteryState, BATTERY_TOPIC, qos)
@@ -199,8 +210,10 @@ class SensorStreams:
             feet = [foot for foot in self._feet if foot.publisher.get_subscription_count() > 0]
             if feet:
                 self._publish_feet(now, feet)
-            if self._hand_pub is not None and self._hand_pub.get_subscription_count() > 0:
-                self._publish_hands(now)
+            wrists = [wrist for wrist in self._wrists if wrist.publisher.get_subscription_count() > 0]
+            raw = self._hand_pub is not None and self._hand_pub.get_subscription_count() > 0
+            if raw or wrists:
+                self._publish_hands(now, raw, wrists)
 
     def _publish_imu(self, now: float) -> None:
         assert self._imu_pub is not None
@@ -224,7 +237,8 @@ class SensorStreams:
             else:
                 foot.publisher.publish(wrench_stamped_message(foot.frame, stamp_of(now), wrench.force, wrench.torque))
 
-    def _publish_hands(self, now: float) -> None:
+    def _publish_hands(self, now: float, raw: bool, wrists: list[_Foot]) -> None:
+        """The raw readings (for /hand_sensors' calibration) and the subscribed wrists' calibrated wrenches."""
         assert self._hand_pub is not None
         data = self._sim.data
         for k, name in enumerate(self._hand_names):
@@ -234,6 +248,14 @@ class SensorStreams:
             self._hand_wrenches[k, 3:] = wrench.torque
             self._hand_linear[k], self._hand_angular[k], self._hand_contact[k] = (
                 hand.linear_speed, hand.angular_speed, hand.in_contact)
+        for wrist in wrists:
+            calibrated = self._hand_wrenches[wrist.index] - self._hand_offsets[wrist.index]
+            if wrist.template is not None:
+                wrist.publisher.publish(wrist.template.serialize(now, calibrated[:3], calibrated[3:]))
+            else:
+                wrist.publisher.publish(wrench_stamped_message(wrist.frame, stamp_of(now), calibrated[:3], calibrated[3:]))
+        if not raw:
+            return
         payload: Any
         if self._hand_template is not None:
             payload = self._hand_template.serialize(now, self._hand_wrenches, self._hand_linear, self._hand_angular,
@@ -242,6 +264,17 @@ class SensorStreams:
             payload = hand_sensors_message(self._hand_names, self._hand_frames, stamp_of(now), self._hand_wrenches,
                                            self._hand_linear, self._hand_angular, self._hand_contact)
         self._hand_pub.publish(payload)
+
+    def _on_hand_offsets(self, msg: HandSensors) -> None:
+        """/hand_sensors' calibrated offsets (by sensor name; others' ignored), subtracted from every wrist wrench
+        published after this; echoed on HAND_OFFSETS_APPLIED_TOPIC once they are."""
+        offsets = {name: wrench for name, wrench in zip(msg.names, msg.wrenches, strict=False)}
+        with self._lock:
+            for k, name in enumerate(self._hand_names):
+                if name in offsets:
+                    w = offsets[name]
+                    self._hand_offsets[k] = (w.force.x, w.force.y, w.force.z, w.torque.x, w.torque.y, w.torque.z)
+            self._offsets_applied_pub.publish(msg)
 
     def publish_battery(self, now: float) -> None:
         """Under the lock, at state_rate: /sim/battery while someone (``/power``) subscribes."""

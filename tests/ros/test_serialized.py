@@ -262,6 +262,7 @@ def test_walking_the_feet_wrenches_equal_the_contact_by_contact_sum_and_the_temp
 
 # ----- the streams of /sim, in-process: the template path and the ordinary path publish the same -------------
 TOPICS = {"/imu": Imu, "/left_foot/wrench": WrenchStamped, "/right_foot/wrench": WrenchStamped,
+          "/left_wrist/wrench": WrenchStamped, "/right_wrist/wrench": WrenchStamped,
           "/sim/hand_sensors": HandSensors, "/sim/battery": BatteryState}
 
 
@@ -337,7 +338,7 @@ def test_sim_streams_publish_the_same_messages_through_templates_and_the_ordinar
         for name in ("ImuTemplate", "WrenchStampedTemplate", "HandSensorsTemplate", "BatteryStateTemplate"):
             monkeypatch.setattr(nodes.sim.sensors, name, refuse)
         ordinary = _publish(context, "sim_ordinary", sim, battery, listener)
-        assert len(refused) == 5, "every stream fell back: /imu, two feet, the hands, the battery"
+        assert len(refused) == 7, "every stream fell back: /imu, two feet, two wrists, the hands' raw readings, the battery"
         for topic in TOPICS:
             assert len(templated[topic]) == len(ordinary[topic]) == 1, topic
             assert templated[topic][0] == ordinary[topic][0], topic
@@ -345,6 +346,7 @@ def test_sim_streams_publish_the_same_messages_through_templates_and_the_ordinar
         assert imu.header.frame_id == "imu_in_pelvis" and _stamp_s(imu) == pytest.approx(sim.time, abs=1e-9)
         assert imu.linear_acceleration_covariance[0] > 0.0
         assert templated["/left_foot/wrench"][0].header.frame_id == "left_sole"
+        assert templated["/right_wrist/wrench"][0].header.frame_id == "right_wrist_ft"
         assert list(templated["/sim/hand_sensors"][0].names) == [w.name for w in spec.sensors.wrists]
         assert templated["/sim/battery"][0].percentage == pytest.approx(battery.level_percent / 100.0, rel=1e-6)
         listener.executor.shutdown()
