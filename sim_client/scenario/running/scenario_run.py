@@ -35,7 +35,7 @@ from sim_client.scenario.running.report import RunResult, Verdict, build_report,
 from sim_client.scenario.running.sim_time import SERVICE_WALL_S, STARTUP_WALL_S, SimTime, StepFailure, call_service
 from sim_interfaces.msg import LocomotionState, ObjectStates
 from sim_interfaces.srv import Push, Reset
-from sim_ros.names import STREAMS
+from sim_ros.names import ODOM_TOPIC, STREAMS, TF_TOPIC
 from sim_ros.session import RESPONSE_QOS, RosSession, TopicRecorder, WaitTimeout
 
 CHUNK_S = 0.02  # sim time advanced between checks of conditions on measures [s]
@@ -130,13 +130,21 @@ class ScenarioRun:
         at once. So the scenario starts at the same sim time however long the matching took. A recorded run
         also waits here for its recorder process to have matched the streams, stepped or free-running.
         """
+        # The recorder must have /sim's other streams too (each republished by the reset): a short run stepped as
+        # fast as possible on a loaded machine once ended before the recorder had matched /tf (an MCAP without it).
+        # /odom and /tf, when the runner sees them published (/objects is not required: its writer exists in a
+        # scene without objects, which never publishes).
+        namespace = self.session.namespace
+        recorded = (*self.streams, *(topic for topic in (f"{namespace}/{ODOM_TOPIC}", f"{namespace}/{TF_TOPIC}")
+                                     if self.mcap is not None and self.session.node.count_publishers(topic) > 0))
+
         def flowing() -> bool:
             if not (self.time.clock.count > 0 and self.joints.count > 0 and self.odom.count > 0):
                 return False
             if self.mcap is None:
                 return True
             counts = self.mcap.status().counts
-            return all(counts.get(t, 0) > 0 for t in self.streams)
+            return all(counts.get(t, 0) > 0 for t in recorded)
 
         deadline = time.monotonic() + STARTUP_WALL_S
         while not flowing():
