@@ -10,7 +10,9 @@ published it after the match.
 from __future__ import annotations
 
 import threading
+from collections.abc import Iterator
 
+import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -38,59 +40,57 @@ def _set_tilt_in_a_thread(head: HeadNode, angle: float) -> tuple[threading.Threa
     return thread, answers
 
 
-def test_a_change_waits_for_a_running_sim_to_listen_and_then_reaches_it():
+@pytest.fixture
+def ros() -> Iterator[tuple[rclpy.Context, list[Node]]]:
+    """A context of the test's own, and a list for the nodes made in it.
+
+    The nodes are destroyed before the context ends. A node left to the garbage collector keeps its latched
+    writer in the graph, and the next test's listener got that test's tilt too (one run in seventeen).
+    """
     context = rclpy.Context()
     rclpy.init(context=context)
     nodes: list[Node] = []
-    try:
-        head = HeadNode("g1", context=context)
-        sim = Node("sim", context=context)
-        nodes += [head, sim]
-        thread, answers = _set_tilt_in_a_thread(head, 0.3)
-        thread.join(timeout=0.2 * SIM_MATCH_WALL_S)
-        assert thread.is_alive(), "the change was answered while /sim did not listen yet"
-
-        heard: list[float] = []
-        sim.create_subscription(Float64, _tilt_topic(), lambda msg: heard.append(msg.data), QoSProfile(depth=10))
-        thread.join(timeout=WAIT_S)
-        assert answers == [True]
-        executor = SingleThreadedExecutor(context=context)
-        executor.add_node(sim)
-        executor.spin_until_future_complete(_when(lambda: 0.3 in heard, executor), timeout_sec=WAIT_S)
-        assert 0.3 in heard, f"/sim (subscribed after the change was asked for) did not get it: {heard}"
-    finally:
-        _close(nodes, context)
-
-
-def test_without_a_running_sim_a_change_is_answered_at_once_and_kept_for_a_sim_that_starts_later():
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    nodes: list[Node] = []
-    try:
-        head = HeadNode("g1", context=context)
-        nodes.append(head)
-        thread, answers = _set_tilt_in_a_thread(head, 0.2)
-        thread.join(timeout=WAIT_S)
-        assert answers == [True]
-        later = Node("later_listener", context=context)  # latched: a /sim starting later takes the latest value
-        nodes.append(later)
-        heard: list[float] = []
-        later.create_subscription(Float64, _tilt_topic(), lambda msg: heard.append(msg.data),
-                                  QoSProfile(depth=1, durability=rclpy.qos.DurabilityPolicy.TRANSIENT_LOCAL))
-        executor = SingleThreadedExecutor(context=context)
-        executor.add_node(later)
-        executor.spin_until_future_complete(_when(lambda: bool(heard), executor), timeout_sec=WAIT_S)
-        assert heard == [0.2], "the latest value, once (only this test's /head runs: the last test's nodes are gone)"
-    finally:
-        _close(nodes, context)
-
-
-def _close(nodes: list[Node], context: rclpy.Context) -> None:
-    """Destroy the nodes before the context ends: a node left to the garbage collector keeps its latched writer in
-    the graph, and the next test's listener got that test's tilt too (one run in seventeen)."""
+    yield context, nodes
     for node in nodes:
         node.destroy_node()
     rclpy.try_shutdown(context=context)
+
+
+def test_a_change_waits_for_a_running_sim_to_listen_and_then_reaches_it(ros):
+    context, nodes = ros
+    head = HeadNode("g1", context=context)
+    sim = Node("sim", context=context)
+    nodes += [head, sim]
+    thread, answers = _set_tilt_in_a_thread(head, 0.3)
+    thread.join(timeout=0.2 * SIM_MATCH_WALL_S)
+    assert thread.is_alive(), "the change was answered while /sim did not listen yet"
+
+    heard: list[float] = []
+    sim.create_subscription(Float64, _tilt_topic(), lambda msg: heard.append(msg.data), QoSProfile(depth=10))
+    thread.join(timeout=WAIT_S)
+    assert answers == [True]
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(sim)
+    executor.spin_until_future_complete(_when(lambda: 0.3 in heard, executor), timeout_sec=WAIT_S)
+    assert 0.3 in heard, f"/sim (subscribed after the change was asked for) did not get it: {heard}"
+
+
+def test_without_a_running_sim_a_change_is_answered_at_once_and_kept_for_a_sim_that_starts_later(ros):
+    context, nodes = ros
+    head = HeadNode("g1", context=context)
+    nodes.append(head)
+    thread, answers = _set_tilt_in_a_thread(head, 0.2)
+    thread.join(timeout=WAIT_S)
+    assert answers == [True]
+    later = Node("later_listener", context=context)  # latched: a /sim starting later takes the latest value
+    nodes.append(later)
+    heard: list[float] = []
+    later.create_subscription(Float64, _tilt_topic(), lambda msg: heard.append(msg.data),
+                              QoSProfile(depth=1, durability=rclpy.qos.DurabilityPolicy.TRANSIENT_LOCAL))
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(later)
+    executor.spin_until_future_complete(_when(lambda: bool(heard), executor), timeout_sec=WAIT_S)
+    assert heard == [0.2], "the latest value, once (only this test's /head runs: the last test's nodes are gone)"
 
 
 def _when(condition, executor: SingleThreadedExecutor) -> rclpy.task.Future:
