@@ -93,7 +93,7 @@ T = TypeVar("T")
 
 
 @dataclass(frozen=True)
-class _Foot:
+class _WrenchStream:
     """A sole's or a wrist's wrench stream: its index in the layout, frame, publisher and template (None: publish messages)."""
 
     index: int
@@ -132,7 +132,7 @@ class SensorStreams:
         self._imu_frame = layout.imu.frame if layout.imu is not None else ""
         if layout.imu is not None:
             self._imu_template = self._template(lambda: ImuTemplate(self._imu_frame, self._covariances), IMU_TOPIC)
-        self._feet = [_Foot(k, foot.frame, node.create_publisher(WrenchStamped, wrench_topic(foot.name), qos),
+        self._feet = [_WrenchStream(k, foot.frame, node.create_publisher(WrenchStamped, wrench_topic(foot.name), qos),
                             self._template(functools.partial(WrenchStampedTemplate, foot.frame), wrench_topic(foot.name)))
                       for k, foot in enumerate(layout.feet)]
         self._hand_names = [w.name for w in layout.wrists]
@@ -144,7 +144,7 @@ class SensorStreams:
         self._hand_wrenches, self._hand_linear, self._hand_angular = np.zeros((n, 6)), np.zeros(n), np.zeros(n)
         self._hand_contact = np.zeros(n, dtype=bool)
         # Each wrist's calibrated wrench (raw - the offset /hand_sensors calibrated; zero until then), on /<wrist>/wrench.
-        self._wrists = [_Foot(k, wrist.frame, node.create_publisher(WrenchStamped, wrench_topic(wrist.name), qos),
+        self._wrists = [_WrenchStream(k, wrist.frame, node.create_publisher(WrenchStamped, wrench_topic(wrist.name), qos),
                               self._template(functools.partial(WrenchStampedTemplate, wrist.frame), wrench_topic(wrist.name)))
                         for k, wrist in enumerate(layout.wrists)]
         self._hand_offsets = np.zeros((n, 6))
@@ -227,7 +227,7 @@ class SensorStreams:
                                   reading.linear_acceleration, self._covariances)
         self._imu_pub.publish(payload)
 
-    def _publish_feet(self, now: float, feet: list[_Foot]) -> None:
+    def _publish_feet(self, now: float, feet: list[_WrenchStream]) -> None:
         """The subscribed soles' wrenches, from one pass over the contacts."""
         wrenches = self.suite.foot_wrenches(self._sim.data)
         for foot in feet:
@@ -237,7 +237,7 @@ class SensorStreams:
             else:
                 foot.publisher.publish(wrench_stamped_message(foot.frame, stamp_of(now), wrench.force, wrench.torque))
 
-    def _publish_hands(self, now: float, raw: bool, wrists: list[_Foot]) -> None:
+    def _publish_hands(self, now: float, raw: bool, wrists: list[_WrenchStream]) -> None:
         """The raw readings (for /hand_sensors' calibration) and the subscribed wrists' calibrated wrenches."""
         assert self._hand_pub is not None
         data = self._sim.data
