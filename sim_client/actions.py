@@ -1,4 +1,4 @@
-"""Typed action clients and a parameter helper, built on :class:`sim_ros.session.RosSession`.
+"""Typed action clients, built on :class:`sim_ros.session.RosSession`.
 
 One small class per action of the project::
 
@@ -17,15 +17,14 @@ import math
 import threading
 import time
 import uuid
-from dataclasses import dataclass, field
+import weakref
+from dataclasses import dataclass
 from typing import Any, ClassVar, Generic, TypeVar
 
 from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped
-from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 from rclpy.action import ActionClient
 from rclpy.action.client import ClientGoalHandle
-from rclpy.parameter import Parameter, parameter_value_to_python
 from unique_identifier_msgs.msg import UUID
 
 from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, Walk
@@ -115,9 +114,9 @@ class GoalHandle(Generic[FeedbackT, ResultT]):
         self.sent_at: float = client.sim_now()
 
     # Called from the executor thread: only append.
-    def _on_feedback(self, message: Any) -> None:
+    def _on_feedback(self, feedback: Any) -> None:
         with self._lock:
-            self._history.append(FeedbackSample(self._client.sim_now(), message.feedback))
+            self._history.append(FeedbackSample(self._client.sim_now(), feedback))
 
     @property
     def accepted(self) -> bool:
@@ -229,6 +228,22 @@ class SimActionClient(Generic[GoalT, FeedbackT, ResultT]):
                                     feedback_sub_qos_profile=FEEDBACK_QOS)
         self.error_names = error_code_names(self.action_type.Result)
         self._answering = False  # the server has answered this client's probes (wait_for_server)
+        # Feedback is read on a subscription of our own: rclpy's ActionClient drops a goal's feedback that
+        # it takes after the goal's result (it forgets the goal's callback then), and with a burst of
+        # feedback queued behind a result (a lock-stepped run on a loaded machine) the last messages of a
+        # goal were lost that way. Here every message of a goal this client sent reaches its handle.
+        self._handles: weakref.WeakValueDictionary[bytes, GoalHandle[FeedbackT, ResultT]] = weakref.WeakValueDictionary()
+        self._handles_lock = threading.Lock()
+        self._feedback = session.node.create_subscription(
+            self.action_type.Impl.FeedbackMessage, f"{self.name}/_action/feedback", self._on_feedback_message,
+            FEEDBACK_QOS)
+
+    # Called from the executor thread.
+    def _on_feedback_message(self, message: Any) -> None:
+        with self._handles_lock:
+            handle = self._handles.get(bytes(message.goal_id.uuid))
+        if handle is not None:
+            handle._on_feedback(message.feedback)
 
     def sim_now(self) -> float:
         """The session's clock [s] (sim time when the session uses sim time)."""
@@ -240,6 +255,9 @@ class SimActionClient(Generic[GoalT, FeedbackT, ResultT]):
             return
         try:
             wait_until_answering(self.session, self._client, timeout)
+            # ... and its feedback reaches us from the first message on (lock-stepped runs wait for it).
+            self.session.wait_for(lambda: self._feedback.get_publisher_count() > 0, timeout,
+                                  f"the feedback of {self.name}")
         except WaitTimeout as error:
             raise ActionError(f"{error}; is the node that serves {self.name} running?") from None
         self._answering = True
@@ -255,9 +273,11 @@ class SimActionClient(Generic[GoalT, FeedbackT, ResultT]):
         """
         self.wait_for_server(timeout)
         handle: GoalHandle[FeedbackT, ResultT] = GoalHandle(self, goal)
+        goal_id = UUID(uuid=list(uuid.uuid4().bytes))
+        with self._handles_lock:
+            self._handles[bytes(goal_id.uuid)] = handle
         what = f"acceptance of the {self.name} goal"
-        future = self.session.in_executor(lambda: self._client.send_goal_async(goal, feedback_callback=handle._on_feedback),
-                                          timeout, what)
+        future = self.session.in_executor(lambda: self._client.send_goal_async(goal, goal_uuid=goal_id), timeout, what)
         goal_handle = self.session.wait_future(future, timeout, what)
         handle._handle = goal_handle
         if goal_handle.accepted:
@@ -266,6 +286,7 @@ class SimActionClient(Generic[GoalT, FeedbackT, ResultT]):
         return handle
 
     def destroy(self) -> None:
+        self.session.node.destroy_subscription(self._feedback)
         self._client.destroy()
 
 
@@ -368,116 +389,3 @@ ACTION_CLIENTS: dict[str, type[SimActionClient]] = {
     "walk": WalkClient,
     "navigate": NavigateClient,
 }
-
-# ----- parameters ----------------------------------------------------------------------------
-_TYPE_NAMES = {
-    ParameterType.PARAMETER_NOT_SET: "not set",
-    ParameterType.PARAMETER_BOOL: "bool",
-    ParameterType.PARAMETER_INTEGER: "integer",
-    ParameterType.PARAMETER_DOUBLE: "double",
-    ParameterType.PARAMETER_STRING: "string",
-    ParameterType.PARAMETER_BYTE_ARRAY: "byte array",
-    ParameterType.PARAMETER_BOOL_ARRAY: "bool array",
-    ParameterType.PARAMETER_INTEGER_ARRAY: "integer array",
-    ParameterType.PARAMETER_DOUBLE_ARRAY: "double array",
-    ParameterType.PARAMETER_STRING_ARRAY: "string array",
-}
-
-
-@dataclass(frozen=True)
-class ParameterInfo:
-    """What ``ros2 param describe`` shows about one parameter."""
-
-    name: str
-    type: str
-    description: str
-    read_only: bool
-    constraints: str
-    range: tuple[float, float] | None = field(default=None)
-
-    def __str__(self) -> str:
-        lines = [f"Parameter name: {self.name}", f"  Type: {self.type}"]
-        if self.description:
-            lines.append(f"  Description: {self.description}")
-        if self.range is not None:
-            lines.append(f"  Range: {self.range[0]} .. {self.range[1]}")
-        if self.constraints:
-            lines.append(f"  Constraints: {self.constraints}")
-        if self.read_only:
-            lines.append("  Read only: true")
-        return "\n".join(lines)
-
-
-class ParameterError(RuntimeError):
-    """A parameter does not exist or its node does not answer."""
-
-
-class Parameters:
-    """The standard parameter services of one node (what ``ros2 param`` calls).
-
-    Args:
-        session: the client session.
-        node: node name: relative (``"sim"``: under the session's namespace) or absolute (``"/locomotion"``).
-        timeout: wall seconds to wait for the node's services and each answer.
-    """
-
-    def __init__(self, session: RosSession, node: str, timeout: float = 10.0) -> None:
-        self.session = session
-        self.node = node if node.startswith("/") else f"{session.namespace}/{node}"  # relative: under the namespace
-        self.timeout = timeout
-        self._client = session.parameters(self.node)
-
-    def _ready(self) -> None:
-        try:
-            self.session.wait_for(self._client.services_are_ready, self.timeout, f"parameter services of {self.node}")
-        except WaitTimeout as error:
-            raise ParameterError(f"{error}; is {self.node} running?") from None
-
-    def list(self) -> list[str]:
-        self._ready()
-        response = self.session.wait_future(self._client.list_parameters([], 0), self.timeout, f"list of {self.node}")
-        return sorted(response.result.names)
-
-    def get(self, name: str) -> Any:
-        self._ready()
-        response = self.session.wait_future(self._client.get_parameters([name]), self.timeout, f"get {self.node} {name}")
-        if not response.values or response.values[0].type == ParameterType.PARAMETER_NOT_SET:
-            raise ParameterError(f"{self.node} has no parameter {name!r}")
-        return parameter_value_to_python(response.values[0])
-
-    def describe(self, name: str) -> ParameterInfo:
-        self._ready()
-        response = self.session.wait_future(
-            self._client.describe_parameters([name]), self.timeout, f"describe {self.node} {name}"
-        )
-        if not response.descriptors:
-            raise ParameterError(f"{self.node} has no parameter {name!r}")
-        d: ParameterDescriptor = response.descriptors[0]
-        if d.type == ParameterType.PARAMETER_NOT_SET:
-            raise ParameterError(f"{self.node} has no parameter {name!r}")
-        span: tuple[float, float] | None = None
-        if d.floating_point_range:
-            span = (d.floating_point_range[0].from_value, d.floating_point_range[0].to_value)
-        elif d.integer_range:
-            span = (float(d.integer_range[0].from_value), float(d.integer_range[0].to_value))
-        return ParameterInfo(d.name or name, _TYPE_NAMES.get(d.type, str(d.type)), d.description, bool(d.read_only),
-                             d.additional_constraints, span)
-
-    def set(self, name: str, value: Any, coerce: bool = True) -> tuple[bool, str]:
-        """Set a parameter; returns (successful, reason). The node's reason is passed on verbatim.
-
-        With ``coerce``, an integer given for a double parameter is sent as a double (``ros2
-        param set`` would refuse it as the wrong type).
-        """
-        if coerce and isinstance(value, int) and not isinstance(value, bool):
-            try:
-                if self.describe(name).type == "double":
-                    value = float(value)
-            except ParameterError:
-                pass
-        self._ready()
-        response = self.session.wait_future(
-            self._client.set_parameters([Parameter(name, value=value)]), self.timeout, f"set {self.node} {name}"
-        )
-        result = response.results[0]
-        return bool(result.successful), str(result.reason)

@@ -142,7 +142,7 @@ def _parse_value(text: str) -> Any:
 
 
 def _param(options: argparse.Namespace) -> int:
-    from sim_client.actions import ParameterError, Parameters
+    from sim_client.parameters import ParameterError, Parameters
     from sim_ros.session import RosSession, WaitTimeout
 
     with RosSession("sim_cli_param", use_sim_time=False, namespace=options.namespace) as session:

@@ -21,7 +21,8 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Image, JointState
 
 import robot_models
-from sim_client.actions import ACTION_CLIENTS, GoalHandle, ParameterError, Parameters, SimActionClient, push_request
+from sim_client.actions import ACTION_CLIENTS, GoalHandle, SimActionClient, push_request
+from sim_client.parameters import ParameterError, Parameters
 from sim_client.scenario.model.actions import ACTIONS
 from sim_client.scenario.model.conditions import Condition, Trigger
 from sim_client.scenario.model.schema import Scenario
