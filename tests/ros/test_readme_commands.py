@@ -121,6 +121,17 @@ def parameter_value(text: str) -> ParameterValue:
     return ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=str(value))
 
 
+def feedback_timeline(feedback: list[Any]) -> str:
+    """One line per change of a goal's stage or phase: its fields then (a failed fetch says where it went wrong)."""
+    lines, last = [], None
+    for message in feedback:
+        key = (getattr(message, "stage", None), getattr(message, "phase", None))
+        if key != last or message is feedback[-1]:
+            lines.append(str(message))
+            last = key
+    return "\n".join(lines[-40:]) or "(none)"
+
+
 class Shell:
     """Runs README commands one after another against the nodes the last starter brought up."""
 
@@ -266,7 +277,10 @@ class Shell:
 
     def finish(self, sent: Any, command: str) -> None:
         outcome = result(self.client, sent, timeout=GOAL_WALL_S)
-        assert outcome.status == GoalStatus.STATUS_SUCCEEDED, f"{command}: {outcome.result}"
+        if outcome.status != GoalStatus.STATUS_SUCCEEDED:  # what a person needs to see where it went wrong
+            output = self.nodes.output()[-6000:] if self.nodes is not None else ""
+            raise AssertionError(f"{command}: {outcome.result}\nits feedback, where it changed:\n"
+                                 f"{feedback_timeline(sent.feedback)}\nthe nodes' last output:\n{output}")
 
     def finish_running(self) -> None:
         if self.running_goal is not None:
