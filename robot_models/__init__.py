@@ -12,7 +12,18 @@ import os
 # 2-core machine such a solve took 743 us instead of 54 us (the walk's wall/sim went from 0.14 to 0.6-1.2).
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from robot_models.registry import G1, PANDA, ROBOT_NAMES, cameras_of, check_scene, load, scenes_summary, sensors_of, walks
+from robot_models.registry import (
+    G1,
+    PANDA,
+    ROBOT_NAMES,
+    cameras_of,
+    check_scene,
+    load,
+    scenes_of,
+    scenes_summary,
+    sensors_of,
+    walks,
+)
 from robot_models.spec import (
     ArmScene,
     GraspLimits,
@@ -27,6 +38,6 @@ from robot_models.spec import (
 
 __all__ = [
     "G1", "PANDA", "ROBOT_NAMES", "ArmScene", "GraspLimits", "JointLimits", "Obstacle", "RobotModelError", "RobotSpec",
-    "UnknownRobotError", "UnknownSceneError", "WalkingLimits", "cameras_of", "check_scene", "load", "scenes_summary",
+    "UnknownRobotError", "UnknownSceneError", "WalkingLimits", "cameras_of", "check_scene", "load", "scenes_of", "scenes_summary",
     "sensors_of", "walks",
 ]

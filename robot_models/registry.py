@@ -131,6 +131,15 @@ def check_scene(name: str, scene: str | None = None) -> None:
         raise UnknownSceneError(f"unknown scene {scene!r} for {entry.name}; scenes: {', '.join(entry.scenes)}")
 
 
+def scenes_of(name: str) -> tuple[str, ...]:
+    """The named robot's scenes, without building its model.
+
+    Raises:
+        UnknownRobotError: the name is not registered; the message lists the names that are.
+    """
+    return entry_of(name).scenes
+
+
 def scenes_summary() -> str:
     """Every robot's scenes, for help texts: ``"g1: open, course, tables; panda: table"``."""
     return "; ".join(f"{name}: {', '.join(_ROBOTS[name].scenes)}" for name in ROBOT_NAMES)

@@ -17,8 +17,9 @@ import pathlib
 import sys
 
 # Ordered by bring-up (G1 open floor, G1 course, Panda table): consecutive ones share their nodes.
+# The G1's first (one bring-up: the open floor, the course, the tables loaded in turn), then the Panda's.
 HEADLINE = ("walk_2m", "walking_speed_change", "walking_speed_0_5_to_0_8", "shove_fall_and_recover",
-            "navigate_around_obstacle", "move_arm_sequence", "pick_place_box", "fetch_box", "fetch_cube")
+            "navigate_around_obstacle", "fetch_box", "fetch_cube", "move_arm_sequence", "pick_place_box")
 
 
 def main(argv: list[str] | None = None) -> int:

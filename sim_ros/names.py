@@ -54,6 +54,7 @@ HAND_OFFSETS_TOPIC = "sim/hand_sensors/offsets"  # /hand_sensors -> /sim: the ca
 HAND_OFFSETS_APPLIED_TOPIC = "sim/hand_sensors/offsets_applied"  # /sim -> /hand_sensors: the offsets /sim now subtracts (latched)
 BATTERY_TOPIC = "sim/battery"  # /sim -> /power: the battery drained in the control step
 BATTERY_CONFIG_TOPIC = "sim/battery_config"  # /power -> /sim: the battery model's settings (latched)
+WORLD_TOPIC = "sim/world"  # /sim -> the action servers: the scene loaded (latched simulation_interfaces WorldResource)
 
 
 def camera_settings_topic(camera: str) -> str:

@@ -62,7 +62,7 @@ def parameter_error(spec: ParameterSpec, value: Any, error: Exception) -> Startu
 
 
 def declare(node: Node, specs: tuple[ParameterSpec, ...]) -> None:
-    """Declare every parameter of ``specs`` on ``node`` with a full descriptor.
+    """Declare every parameter of ``specs`` on ``node`` with a full descriptor (one declared already is left as it is).
 
     Raises:
         StartupError: a start-up value (``-p`` or a params file) is out of range or of the
@@ -71,6 +71,8 @@ def declare(node: Node, specs: tuple[ParameterSpec, ...]) -> None:
     from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 
     for spec in specs:
+        if node.has_parameter(spec.name):  # declared by an earlier configure (a world loaded since): keeps its value
+            continue
         descriptor = ParameterDescriptor(description=spec.description, read_only=spec.read_only)
         if spec.low is not None and spec.high is not None:
             if isinstance(spec.default, float):

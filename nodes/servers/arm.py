@@ -87,7 +87,8 @@ class ArmServer(Node):
         self._kinematics: ArmKinematics | None = None
         self._kinematics_lock = threading.Lock()
         self._servers = skill_servers(self, self.robot, ACTIONS,
-                                      self._settings, lambda: 1.0 / float(self.get_parameter("feedback_rate").value))
+                                      self._settings, lambda: 1.0 / float(self.get_parameter("feedback_rate").value),
+                                      self._scene_loaded)
         group = ReentrantCallbackGroup()
         # The IK query starts from the current state: streams of /sim subscribed only while a query needs them.
         self._joints: OnDemandTopic[JointState] = OnDemandTopic(self, JointState, JOINT_STATES_TOPIC, 10, group)
@@ -97,6 +98,11 @@ class ArmServer(Node):
 
     def _settings(self) -> dict[str, float]:
         return {name: float(self.get_parameter(name).value) for name in ARM_SETTINGS}
+
+    def _scene_loaded(self, spec: robot_models.RobotSpec) -> None:
+        """/sim loaded another scene: goals and IK queries use it (the IK model is built again when next asked)."""
+        with self._kinematics_lock:
+            self.robot, self._scene, self._kinematics = spec, spec.scene, None
 
     # ----- IK query ----------------------------------------------------------------------
     @property

@@ -32,6 +32,7 @@ from rclpy.task import Future
 
 from nodes.runtime.executor import wait_parked
 from nodes.servers.protocol import BINDINGS, SkillBinding, result_codes
+from nodes.servers.world import follow_world
 from robot_models import RobotSpec
 from sim_bridge.errors import InvalidGoalError
 from sim_interfaces.msg import SkillCommand, SkillState
@@ -103,7 +104,7 @@ class SkillActionServer:
                  settings: Callable[[], dict[str, float]], feedback_period: Callable[[], float], commands: Any) -> None:
         self._node = node
         self.binding = binding
-        self._robot = robot
+        self.robot = robot  # the light model goals are validated on (the scene /sim runs)
         self._settings = settings
         self._feedback_period = feedback_period
         self._commands = commands
@@ -125,8 +126,8 @@ class SkillActionServer:
     # ----- goal life ---------------------------------------------------------------------------
     def _accept(self, goal: Any) -> GoalResponse:
         try:
-            self.binding.validate(goal, self._robot)
-            self.binding.resource(goal, self._robot)
+            self.binding.validate(goal, self.robot)
+            self.binding.resource(goal, self.robot)
         except InvalidGoalError as reason:
             self._node.get_logger().warning(f"{self.binding.action_type.__name__} goal rejected: {reason}")
             return GoalResponse.REJECT
@@ -145,7 +146,7 @@ class SkillActionServer:
             return result
 
     async def _run(self, handle: ServerGoalHandle) -> Any:
-        resource = self.binding.resource(handle.request, self._robot)
+        resource = self.binding.resource(handle.request, self.robot)
         settings = self._settings()
         command = SkillCommand(request=SkillCommand.START, skill=self.binding.name, resource=resource, goal_seq=_next_seq(),
                                goal=serialize_message(handle.request), setting_names=list(settings),
@@ -261,7 +262,7 @@ class SkillActionServer:
                 result = action.Result()
                 result.error_code = action.Result.SIM_FAULT
                 result.error_msg = (f"no answer from /sim on {SKILL_STATE_TOPIC} within {ACK_TIMEOUT_S:g} s: "
-                                    f"is /sim running with the {self._robot.name}?")
+                                    f"is /sim running with the {self.robot.name}?")
                 self._end(goal, SkillState.ABORTED, result)
             else:
                 self._send(goal.command)
@@ -332,11 +333,13 @@ def end_goals_before_exit(node: Node, executor: Executor) -> None:
 
 
 def skill_servers(node: Node, robot: RobotSpec, actions: dict[str, str], settings: Callable[[], dict[str, float]],
-                  feedback_period: Callable[[], float]) -> dict[str, SkillActionServer]:
+                  feedback_period: Callable[[], float],
+                  on_scene: Callable[[RobotSpec], None] = lambda spec: None) -> dict[str, SkillActionServer]:
     """Action servers for several skills of one node, sharing one /sim/skill_state stream and one command publisher.
 
     Args:
         actions: skill name -> action name (e.g. ``{"walk": "/walk"}``).
+        on_scene: told the light model of the scene when /sim loads another one (the servers validate on it).
     """
     servers: dict[str, SkillActionServer] = {}
 
@@ -362,4 +365,11 @@ def skill_servers(node: Node, robot: RobotSpec, actions: dict[str, str], setting
     for skill, action_name in actions.items():
         servers[skill] = SkillActionServer(node, BINDINGS[skill], action_name, robot, settings, feedback_period, commands)
     _SERVERS.setdefault(node, []).extend(servers.values())
+
+    def scene_loaded(spec: RobotSpec) -> None:
+        for server in servers.values():
+            server.robot = spec
+        on_scene(spec)
+
+    follow_world(node, robot, scene_loaded)
     return servers

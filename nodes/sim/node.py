@@ -9,6 +9,7 @@ change is atomic with respect to stepping.
 
 from __future__ import annotations
 
+import gc
 import sys
 import threading
 from typing import Any
@@ -41,12 +42,14 @@ from nodes.sim.publication import Publications
 from nodes.sim.services import SimServices
 from nodes.sim.standard import SimulationStandard
 from nodes.sim.stepping import Stepper
+from nodes.sim.world import MadeEntities, WorldServices
 from sim_bridge import Pacer, Simulation
 from sim_bridge.skills import LEGS
 from sim_ros.names import MAX_STREAM_RATE_HZ, SIM_NODE
 from sim_ros.teardown import destroy_node_fully
 
 NODE_NAME = SIM_NODE
+WORLD_COLLECT_AFTER_S = 1.0  # [s of wall time] after a world was loaded, when the old one is collected once more
 HAND_OFF_TIMEOUT_S = 0.1  # [s of wall time] longest the physics thread waits for a waiting service to take its lock
 
 PARAMETERS = (
@@ -89,6 +92,8 @@ class SimNode(LifecycleNode):
         self._paused = bool(self.get_parameter("start_paused").value)
         self._pacer = Pacer(self._param("real_time_factor"))
         self.configure_error = ""  # why the last configure failed, as the user should read it
+        self._made = MadeEntities()  # what the scene's configure made on this node (destroyed when the world changes)
+        self.world = WorldServices(self, str(self._param("robot")), self._scene_loaded, self.load_world)
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self.context.on_shutdown(self._stop_thread)
@@ -133,7 +138,8 @@ class SimNode(LifecycleNode):
             return TransitionCallbackReturn.SUCCESS
         try:
             map_large_buffers()
-            robot = self._configure()
+            robot = robot_models.load(str(self._param("robot")), str(self._param("scene")) or None)
+            self._configure(robot)
             release_build_memory()
         except Exception as error:  # noqa: BLE001 - any cause is reported as it is, and the node stays unconfigured
             self.configure_error = str(error) if isinstance(error, (StartupError, robot_models.RobotModelError)) \
@@ -144,14 +150,18 @@ class SimNode(LifecycleNode):
             self._publications = self._stepper = None
             return TransitionCallbackReturn.FAILURE
         self.get_logger().info(
-            f"robot {robot.name}: {len(robot.actuated_joints)} actuated joints, physics step "
+            f"robot {robot.name} in scene {robot.scene}: {len(robot.actuated_joints)} actuated joints, physics step "
             f"{robot.physics_timestep * 1e3:.1f} ms, control step {robot.control_timestep * 1e3:.1f} ms"
         )
+        self.world.announce()
         return TransitionCallbackReturn.SUCCESS
 
-    def _configure(self) -> robot_models.RobotSpec:
-        """Build the scene, its publications, services and in-loop plugins (raises on any failure)."""
-        robot = robot_models.load(str(self._param("robot")), str(self._param("scene")) or None)
+    def _configure(self, robot: robot_models.RobotSpec) -> None:
+        """Build the scene of ``robot``, its publications, services and in-loop plugins (raises on any failure);
+        what it makes on the node is kept in ``_made``."""
+        _, self._made = MadeEntities.made_by(self, lambda: self._build(robot))
+
+    def _build(self, robot: robot_models.RobotSpec) -> None:
         sim = self.sim = Simulation(robot)
         plugins = self.plugins = InLoopPlugins(self, sim, self._lock)
         publications = self._publications = Publications(self, sim, plugins.publish_state)
@@ -161,15 +171,51 @@ class SimNode(LifecycleNode):
         self.standard = SimulationStandard(self, sim, self)  # the ROS simulation standard's services and action, under ~/
         self.create_timer(1.0, self._publish_rtf)
         drop_qos_event_handlers(self)  # cheap executor wake-ups: the physics thread shares the GIL
-        return robot
+
+    def _scene_loaded(self) -> str:
+        return self.sim.robot.scene if self.sim is not None else ""
+
+    def load_world(self, scene: str) -> None:
+        """Replace the scene by another of the robot's, as a fresh /sim would start it (see :mod:`nodes.sim.world`).
+
+        Raises:
+            RuntimeError: /sim is not configured yet (nothing is changed).
+            robot_models.RobotModelError: the scene could not be built (nothing is changed).
+        """
+        if self.sim is None:
+            raise RuntimeError("/sim is not configured: configure it first (or start it with -p scene:=...)")
+        robot = robot_models.load(self.sim.robot.name, scene)  # the slow part, and the one that may fail: first
+        running = self._thread is not None
+        self.reset_scene(keep_time=False)  # the running goals end, and their servers hear it
+        self._stop_thread()
+        with self._lock:
+            self._made.destroy(self)
+            self._parameters["scene"] = Parameter("scene", value=scene)  # read-only for users: it says what is loaded
+            self._configure(robot)
+            assert self.plugins is not None
+            self.plugins.on_parameters(list(self._parameters.values()))  # the node's settings carry over
+            release_build_memory()
+        self.get_logger().info(f"world replaced: {robot.name} in scene {scene}, sim time 0")
+        if running:
+            self._start_thread()
+        # The old scene's objects hold one another in cycles (~180 MB for the G1), which only the cyclic collector
+        # frees, and it seldom runs a full collection; the executor lets go of the destroyed entities (and with them
+        # the last references) at its next waits, so a collection runs again a moment later.
+        gc.collect()
+        collect_later = threading.Timer(WORLD_COLLECT_AFTER_S, gc.collect)
+        collect_later.daemon = True
+        collect_later.start()
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self._start_thread()
+        self.get_logger().info("active: physics running" + (" (paused)" if self._paused else ""))
+        return super().on_activate(state)
+
+    def _start_thread(self) -> None:
         self._stop.clear()
         self._pacer.reanchor()
         self._thread = threading.Thread(target=self._run, name="physics", daemon=True)
         self._thread.start()
-        self.get_logger().info("active: physics running" + (" (paused)" if self._paused else ""))
-        return super().on_activate(state)
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
         self._stop_thread()

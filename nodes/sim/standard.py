@@ -6,7 +6,8 @@ set_simulation_state, step_simulation, the simulate_steps action, and the entity
 set_entity_state, get_entity_info, get_entity_bounds; and spawn_entity, spawn_entities,
 delete_entity, get_spawnables, which answer RESULT_FEATURE_UNSUPPORTED: a MuJoCo model is compiled,
 and the controllers, skills and /tf publishers of /sim hold its ids, so bodies are not added or
-removed at run time).
+removed at run time). A whole scene is replaced by another (load_world and the other world services,
+:mod:`nodes.sim.world`): everything scene-bound is built again.
 
 Conventions (also in ``custom_info`` of the features):
 - one step is one physics step (``mj_step``, the model's timestep); the controllers still run on
@@ -60,6 +61,7 @@ FEATURES = (
     SimulatorFeatures.SIMULATION_STATE_SETTING, SimulatorFeatures.SIMULATION_STATE_PAUSE,
     SimulatorFeatures.STEP_SIMULATION_SINGLE, SimulatorFeatures.STEP_SIMULATION_MULTIPLE,
     SimulatorFeatures.STEP_SIMULATION_ACTION,
+    SimulatorFeatures.WORLD_LOADING, SimulatorFeatures.AVAILABLE_WORLDS, SimulatorFeatures.WORLD_INFO_GETTING,  # nodes.sim.world
 )
 STATE_NAMES = {SimulationState.STATE_STOPPED: "STOPPED", SimulationState.STATE_PLAYING: "PLAYING",
                SimulationState.STATE_PAUSED: "PAUSED", SimulationState.STATE_QUITTING: "QUITTING",
@@ -114,7 +116,8 @@ class SimulationStandard:
             f"{sim.physics_timestep * 1e3:g} ms (control step {sim.control_timestep * 1e3:g} ms). Entity states are "
             "in world: pose of the canonical frame, velocity of its origin and angular velocity in world axes. "
             "SCOPE_TIME resets the clock together with the state only. STOPPED = paused at the keyframe, t = 0. "
-            "Spawning and deleting are not supported (a compiled MuJoCo model); move entities with SetEntityState.")
+            "Spawning and deleting are not supported (a compiled MuJoCo model); move entities with SetEntityState. "
+            "Worlds are the robot's scenes, loaded by name (load_world uri 'course' or 'g1/course').")
         return response
 
     def _state(self) -> int:

@@ -80,10 +80,13 @@ class TestPanda:
         for feature in (SimulatorFeatures.SIMULATION_RESET, SimulatorFeatures.SIMULATION_STATE_SETTING,
                         SimulatorFeatures.SIMULATION_STATE_PAUSE, SimulatorFeatures.STEP_SIMULATION_MULTIPLE,
                         SimulatorFeatures.STEP_SIMULATION_ACTION, SimulatorFeatures.ENTITY_STATE_GETTING,
-                        SimulatorFeatures.ENTITY_STATE_SETTING, SimulatorFeatures.ENTITY_INFO_GETTING):
+                        SimulatorFeatures.ENTITY_STATE_SETTING, SimulatorFeatures.ENTITY_INFO_GETTING,
+                        SimulatorFeatures.WORLD_LOADING, SimulatorFeatures.AVAILABLE_WORLDS,
+                        SimulatorFeatures.WORLD_INFO_GETTING):
             assert feature in served
         for feature in (SimulatorFeatures.SPAWNING, SimulatorFeatures.DELETING, SimulatorFeatures.SPAWNABLES,
-                        SimulatorFeatures.WORLD_LOADING, SimulatorFeatures.SIMULATION_RESET_SPAWNED):
+                        SimulatorFeatures.WORLD_RESOURCE_STRING, SimulatorFeatures.WORLD_UNLOADING,
+                        SimulatorFeatures.SIMULATION_RESET_SPAWNED):
             assert feature not in served
         assert list(features.spawn_formats) == [] and "physics step" in features.custom_info
         for srv_type, name in ((SpawnEntity, "spawn_entity"), (DeleteEntity, "delete_entity"), (GetSpawnables, "get_spawnables")):

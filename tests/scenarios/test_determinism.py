@@ -190,3 +190,29 @@ def test_runs_on_one_bringup_give_the_report_of_a_run_on_fresh_nodes(tmp_path: p
         assert not problems, f"a run on a reused bring-up has other feedback than on fresh nodes: {problems}"
     whole = [_report_without_wall_times(report) for report in reports]
     assert whole[1] == whole[0] and whole[2] == whole[0]
+
+
+@pytest.mark.slow
+def test_a_run_after_the_world_was_replaced_gives_the_report_of_a_run_on_fresh_nodes(tmp_path: pathlib.Path) -> None:
+    """A run in the course on a bring-up that ran in the open scene (and left a mess there: a faster pace,
+    another /odom grid, the robot moved, a goal still running) loads the course into the running nodes
+    (/sim/load_world) and gives the report and feedback of a course run on fresh nodes."""
+    mess_path = tmp_path / "leave_a_mess.yaml"
+    mess_path.write_text(textwrap.dedent(LEAVE_A_MESS))
+    mess, course = schema.load(mess_path), schema.load(schema.find("navigate_around_obstacle"))
+    assert (mess.robot, mess.scene) == ("g1", "open") and (course.robot, course.scene) == ("g1", "course")
+    options = RunOptions(out=tmp_path / "runs", quiet=True)
+    fresh: Any = run(course, options, stream=io.StringIO())
+    with Bringups(io.StringIO(), quiet=True) as bringups:
+        shared: list[Any] = [run(s, options, io.StringIO(), bringups) for s in (mess, course)]
+        assert bringups.started == 1, "a run in another scene of the same robot loads that scene into the running nodes"
+    assert all(result.passed for result in (fresh, *shared)), [r.report for r in (fresh, *shared) if not r.passed]
+    after = shared[1]
+    assert after.report["started_at_sim_s"] == fresh.report["started_at_sim_s"]
+    numbers, other = _outcome_numbers(fresh.report), _outcome_numbers(after.report)
+    assert len(numbers) >= 5 and other.keys() == numbers.keys(), (numbers, other)
+    differ = {key: (numbers[key], other[key]) for key in other if abs(numbers[key] - other[key]) > TOLERANCE}
+    assert not differ, f"the course run after the open one differs from the run on fresh nodes: {differ}"
+    problems = _feedback_differences(fresh.feedback, after.feedback)
+    assert not problems, f"the course run after the open one has other feedback than on fresh nodes: {problems}"
+    assert _report_without_wall_times(after.report) == _report_without_wall_times(fresh.report)

@@ -1,4 +1,5 @@
-"""One bring-up for consecutive runs of the same robot, scene and pace: started once, reset between runs.
+"""One bring-up for consecutive runs of the same robot and pace: started once, reset between runs, and for a run in
+another scene, that scene loaded (``/sim/load_world``; the action servers follow it).
 
 A run on a reused bring-up gives the report a run on fresh nodes gives (apart from wall times): the
 parameters a run changed (``set_param`` steps) are set back to the values they had before the first
@@ -19,17 +20,18 @@ import signal
 import sys
 import tempfile
 from dataclasses import dataclass, field
-from typing import TextIO
+from typing import Any, TextIO
 
 from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterValue
 from rclpy.parameter import Parameter
 
+import robot_models
 from sim_client.scenario.model.schema import Scenario
 from sim_client.scenario.running.sim_time import SERVICE_WALL_S, StepFailure
 from sim_ros.processes import ChildProcess
 from sim_ros.session import RosSession, WaitTimeout
 from simulation_interfaces.msg import Result
-from simulation_interfaces.srv import ResetSimulation
+from simulation_interfaces.srv import LoadWorld, ResetSimulation
 
 BringupKey = tuple[str, str, float]  # robot, scene, real-time factor
 # /clock of a scenario's bring-up [Hz of sim time]: the rate the nodes on sim time need (their loops run
@@ -105,8 +107,12 @@ class Bringup:
     _log_offset: int = 0
     _last_folder: pathlib.Path | None = None
 
-    def prepare(self, session: RosSession) -> list[str]:
-        """Make a bring-up that served runs look just started: parameters, scene, goals, sim time.
+    @property
+    def scene(self) -> str:
+        return self.key[1]
+
+    def prepare(self, session: RosSession, scene: str) -> list[str]:
+        """Make a bring-up that served runs look just started in ``scene``: parameters, world, goals, sim time.
 
         Returns:
             ``node name`` of each parameter set back.
@@ -114,15 +120,36 @@ class Bringup:
         Raises:
             StepFailure, WaitTimeout: it could not be brought back (the caller starts a fresh one).
         """
-        if self.runs == 0:
+        if self.runs == 0 and scene == self.scene:
             return []
         restored = self.parameters.restore(session) or self.parameters.last_restored  # (set back after the last run)
         self.parameters.last_restored = []
+        if scene != self.scene:
+            self._load_world(session, scene)
         request = ResetSimulation.Request(scope=ResetSimulation.Request.SCOPE_ALL)
         response = session.call(ResetSimulation, "sim/reset_simulation", request, timeout=SERVICE_WALL_S)
         if response.result.result != Result.RESULT_OK:
             raise StepFailure(f"/sim/reset_simulation: {response.result.error_message}")
         return restored
+
+    def _load_world(self, session: RosSession, scene: str) -> None:
+        """``/sim/load_world`` ``scene``, then wait until the action servers validate goals on it."""
+        request = LoadWorld.Request()
+        request.world_resource.uri = scene
+        response = session.call(LoadWorld, "sim/load_world", request, timeout=SERVICE_WALL_S)
+        if response.result.result != Result.RESULT_OK:
+            raise StepFailure(f"/sim/load_world {scene}: {response.result.error_message}")
+        robot = self.key[0]
+        for node in ("arm", *(("locomotion",) if robot_models.walks(robot) else ())):
+            client = session.parameters(f"{session.namespace}/{node}")
+            session.wait_for(client.services_are_ready, SERVICE_WALL_S, f"parameter services of /{node}")
+
+            def loaded(client: Any = client) -> bool:
+                values = session.wait_future(client.get_parameters(["scene"]), SERVICE_WALL_S, "the scene of a server")
+                return bool(values.values) and values.values[0].string_value == scene
+
+            session.wait_for(loaded, SERVICE_WALL_S, f"/{node} to follow /sim into the scene {scene!r}", poll=0.05)
+        self.key = (robot, scene, self.key[2])
 
     def copy_log(self, folder: pathlib.Path) -> pathlib.Path:
         """Write what the nodes logged since the last copy to ``folder/bringup.log`` (the run's share)."""
@@ -145,7 +172,7 @@ class Bringup:
 
 
 class Bringups:
-    """Starts bring-ups for runs and keeps the last one for the next run of the same robot, scene and pace.
+    """Starts bring-ups for runs and keeps the last one for the next run of the same robot and pace (any scene).
 
     Use with ``with``: the bring-up still running is stopped at the end. ``started`` counts the bring-ups.
 
@@ -176,14 +203,17 @@ class Bringups:
         """The bring-up for a run of ``scenario`` at ``rtf``: the running one, reset, or a new one."""
         key: BringupKey = (scenario.robot, scenario.scene, rtf)
         current = self.current
-        if current is not None and current.key == key and not current.trusted:
+        same = current is not None and (current.key[0], current.key[2]) == (scenario.robot, rtf)  # any scene: loaded
+        if current is not None and same and not current.trusted:
             self._say("the last run on the running bring-up ended in an error: starting a new one")
-        elif current is not None and current.key == key and not current.process.alive():
+        elif current is not None and same and not current.process.alive():
             self._say(f"the running bring-up exited (code {current.process.process.returncode}): starting a new one")
-        elif current is not None and current.key == key:
+        elif current is not None and same:
             try:
-                restored = current.prepare(session)
-                self._say(f"reusing the bring-up of {scenario.robot}/{scenario.scene} (run {current.runs + 1} on it): reset, "
+                was = current.scene
+                restored = current.prepare(session, scenario.scene)
+                world = f"the {scenario.scene} scene loaded, " if scenario.scene != was else ""
+                self._say(f"reusing the bring-up of {scenario.robot}/{was} (run {current.runs + 1} on it): {world}reset, "
                           f"sim time 0{', set back: ' + ', '.join(restored) if restored else ''}")
                 return current
             except (StepFailure, WaitTimeout) as error:

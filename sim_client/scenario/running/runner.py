@@ -45,8 +45,9 @@ def run(scenario: Scenario, options: RunOptions = DEFAULT_OPTIONS, stream: TextI
         scenario: what to run.
         options: how (``launch`` False: against nodes already running).
         stream: where the progress goes.
-        bringups: the bring-up of the previous run, reused when it has the same robot, scene and pace
-            (reset in between); None: a bring-up of its own, stopped at the end. Unused with ``launch`` False.
+        bringups: the bring-up of the previous run, reused when it has the same robot and pace (this
+            scenario's scene loaded, and reset, in between); None: a bring-up of its own, stopped at the end.
+            Unused with ``launch`` False.
     """
     if not options.launch:
         bringups = None
@@ -88,29 +89,30 @@ def run(scenario: Scenario, options: RunOptions = DEFAULT_OPTIONS, stream: TextI
 
 
 def run_order(scenarios: Sequence[Scenario], options: RunOptions = DEFAULT_OPTIONS) -> list[int]:
-    """The order to run ``scenarios`` in (indices): those of one robot, scene and pace together, the groups in the
-    order of their first scenario, each group in the order given. Every run starts from a reset, so the order
-    changes no report; grouped, ``A B C`` with A and C on the open floor and B on the course brings the G1 up
-    twice, not three times. Against running nodes (``launch`` False) the order is the one given."""
+    """The order to run ``scenarios`` in (indices): those of one robot and pace together (one bring-up), within
+    them those of one scene together (one world loaded), each in the order of its first scenario, each scene's
+    in the order given. Every run starts from a reset, so the order changes no report; ``A B C`` with A and C
+    on the open floor and B on the course brings the G1 up once and loads the course once. Against running
+    nodes (``launch`` False) the order is the one given."""
     if not options.launch:
         return list(range(len(scenarios)))
-    groups: dict[tuple[str, str, float], list[int]] = {}
+    groups: dict[tuple[str, float], dict[str, list[int]]] = {}
     for index, scenario in enumerate(scenarios):
         rtf = scenario.rtf if options.rtf is None else options.rtf
-        groups.setdefault((scenario.robot, scenario.scene, rtf), []).append(index)
-    return [index for group in groups.values() for index in group]
+        groups.setdefault((scenario.robot, rtf), {}).setdefault(scenario.scene, []).append(index)
+    return [index for scenes in groups.values() for group in scenes.values() for index in group]
 
 
 def run_all(scenarios: Sequence[Scenario], options: RunOptions = DEFAULT_OPTIONS,
             stream: TextIO = sys.stdout) -> tuple[list[RunResult], int]:
-    """Run scenarios, those of the same robot, scene and pace one after another on one bring-up (:func:`run_order`).
+    """Run scenarios, those of the same robot and pace one after another on one bring-up (:func:`run_order`).
 
     Returns:
         each run's result, in the order of ``scenarios``, and how many bring-ups were started.
     """
     order = run_order(scenarios, options)
     if order != sorted(order) and not options.quiet:
-        stream.write(f"running {len(scenarios)} scenarios grouped by robot and scene, one bring-up per group: "
+        stream.write(f"running {len(scenarios)} scenarios grouped by robot and scene, one bring-up per robot: "
                      f"{' '.join(scenarios[i].name for i in order)}\n")
     results: dict[int, RunResult] = {}
     with Bringups(stream, quiet=options.quiet) as bringups:
