@@ -185,19 +185,22 @@ class SimNode(LifecycleNode):
         if self.sim is None:
             raise RuntimeError("/sim is not configured: configure it first (or start it with -p scene:=...)")
         robot = robot_models.load(self.sim.robot.name, scene)  # the slow part, and the one that may fail: first
+        old = self.sim.robot
         running = self._thread is not None
         self.reset_scene(keep_time=False)  # the running goals end, and their servers hear it
         self._stop_thread()
-        with self._lock:
-            self._made.destroy(self)
-            self._parameters["scene"] = Parameter("scene", value=scene)  # read-only for users: it says what is loaded
-            self._configure(robot)
-            assert self.plugins is not None
-            self.plugins.on_parameters(list(self._parameters.values()))  # the node's settings carry over
-            release_build_memory()
+        try:
+            with self._lock:
+                self._made.destroy(self)
+                self._configure_scene(robot)
+        except Exception:
+            with self._lock:  # what the new scene made is gone (MadeEntities.made_by): the old scene back, afresh
+                self._configure_scene(old)
+            raise
+        finally:
+            if running:
+                self._start_thread()
         self.get_logger().info(f"world replaced: {robot.name} in scene {scene}, sim time 0")
-        if running:
-            self._start_thread()
         # The old scene's objects hold one another in cycles (~180 MB for the G1), which only the cyclic collector
         # frees, and it seldom runs a full collection; the executor lets go of the destroyed entities (and with them
         # the last references) at its next waits, so a collection runs again a moment later.
@@ -205,6 +208,14 @@ class SimNode(LifecycleNode):
         collect_later = threading.Timer(WORLD_COLLECT_AFTER_S, gc.collect)
         collect_later.daemon = True
         collect_later.start()
+
+    def _configure_scene(self, robot: robot_models.RobotSpec) -> None:
+        """Under the lock: build ``robot``'s scene on a node whose last scene was destroyed, with the node's settings."""
+        self._parameters["scene"] = Parameter("scene", value=robot.scene)  # read-only for users: it says what is loaded
+        self._configure(robot)
+        assert self.plugins is not None
+        self.plugins.on_parameters(list(self._parameters.values()))  # the node's settings carry over
+        release_build_memory()
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
         self._start_thread()
@@ -381,7 +392,8 @@ The /sim node: a headless MuJoCo simulation of one robot scene as a lifecycle no
 physics (paced by real_time_factor, or on /sim/step), publishes /clock, /joint_states, /odom, /tf,
 /tf_static and /objects, consumes /cmd_vel, runs the skills of the action servers in its control
 step and serves reset, pause, resume, step and push under /sim/, and the ROS simulation standard
-(simulation_interfaces: get/set_simulation_state, step_simulation, simulate_steps, get/set_entity_state, ...).""", PARAMETERS,
+(simulation_interfaces: get/set_simulation_state, step_simulation, simulate_steps, get/set_entity_state, ...,
+load_world: another scene of the robot, by name).""", PARAMETERS,
                      f"Known robots: {', '.join(robot_models.ROBOT_NAMES)}. The gait parameters (gait.*) are declared "
                      "once a walking robot is configured: `ros2 param list /sim` shows them.")
 

@@ -69,13 +69,20 @@ class MadeEntities:
 
     @staticmethod
     def made_by(node: Node, build: Callable[[], Any]) -> tuple[Any, MadeEntities]:
-        """Run ``build`` and return what it returned and what it made on ``node``."""
+        """Run ``build`` and return what it returned and what it made on ``node``; if it raises, what it made is
+        destroyed before the exception goes on."""
         before = MadeEntities._of(node)
-        built = build()
-        after = MadeEntities._of(node)
-        made = MadeEntities(**{name: [e for e in getattr(after, name) if not any(e is b for b in getattr(before, name))]
-                               for name in MadeEntities.__dataclass_fields__})
-        return built, made
+
+        def made_since() -> MadeEntities:
+            after = MadeEntities._of(node)
+            return MadeEntities(**{name: [e for e in getattr(after, name) if not any(e is b for b in getattr(before, name))]
+                                   for name in MadeEntities.__dataclass_fields__})
+        try:
+            built = build()
+        except BaseException:
+            made_since().destroy(node)
+            raise
+        return built, made_since()
 
     def destroy(self, node: Node) -> None:
         """Destroy every entity this holds (the node keeps serving what it had before)."""
