@@ -55,3 +55,15 @@ def test_a_small_sweep_runs_on_ray_and_writes_its_table_and_plot(tmp_path):
     assert all(row["passed"] == "True" for row in rows)
     assert json.loads((result.folder / "sweep.json").read_text())["grid"] == {"steps.1.wait.duration": [0.4, 0.8]}
     assert (result.folder / "sweep.png").stat().st_size > 10_000
+
+
+def test_a_worker_keeps_its_bring_up_warm_for_the_points_it_runs(tmp_path):
+    """Three points on one worker: one bring-up; the later points start in a reset, not a start-up, and each
+    runs its own value."""
+    path = schema.find("reset_and_stand_panda")
+    out = io.StringIO()
+    result = run_sweep(path, parse_grid(["steps.1.wait.duration=[0.4, 0.8, 1.2]"]), [0], tmp_path, workers=1, stream=out)
+    assert result.passed == 3, out.getvalue()
+    assert "3 runs on 1 workers, 1 bring-ups" in out.getvalue(), out.getvalue()
+    assert [row["new_bringup"] for row in result.rows] == [True, False, False]
+    assert [row["sim_time_s"] for row in result.rows] == [pytest.approx(v, abs=0.05) for v in (0.4, 0.8, 1.2)]

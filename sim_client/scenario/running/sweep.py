@@ -3,11 +3,12 @@
 A grid key is a dotted path into the scenario file (list items by index), e.g.
 ``steps.0.send_goal.goal.speed``; its values are a YAML list (``[0.3, 0.5, 0.8]``) or a range
 ``start:stop:step`` (stop included). Every combination runs once per seed (the seed is written into
-the scenario's ``seed``). Each point is validated before anything starts, then runs as its own
-``scenario run`` process on a ROS domain of its own (localhost discovery), as a Ray task: a local Ray
-instance by default, a Ray cluster when given its address (every node needs the project installed at
-the same path). The sweep writes ``sweep.csv`` and ``sweep.json`` (one row per run: the point, passed,
-each expectation's measured value, sim and wall time, the run folder) and ``sweep.png``.
+the scenario's ``seed``). Each point is validated before anything starts, then runs on a worker: a Ray
+actor with a ROS domain of its own (localhost discovery) that keeps its bring-up warm for the points it
+runs (:mod:`~sim_client.scenario.running.sweep_worker`): a local Ray instance by default, a Ray cluster
+when given its address (every node needs the project installed at the same path). The sweep writes
+``sweep.csv`` and ``sweep.json`` (one row per run: the point, passed, each expectation's measured value,
+sim and wall time, the worker, whether it started a bring-up, the run folder) and ``sweep.png``.
 """
 
 from __future__ import annotations
@@ -18,7 +19,6 @@ import json
 import math
 import os
 import pathlib
-import subprocess
 import sys
 import time
 from collections.abc import Sequence
@@ -28,9 +28,9 @@ from typing import Any, TextIO
 import yaml
 
 from sim_client.scenario.model import schema
+from sim_client.scenario.running.sweep_worker import SweepWorker
 
 DOMAIN_IDS = 101  # Fast DDS domain ids 1..101 are safe for its port scheme; 0 is everyone's default
-RUN_WALL_LIMIT_S = 1800.0  # one point's process is stopped after this long (a hang guard)
 
 
 class SweepError(Exception):
@@ -134,37 +134,6 @@ def points(scenario_path: pathlib.Path, grid: dict[str, list[Any]], seeds: Seque
     return result
 
 
-def run_point(point: Point, out: pathlib.Path, domain_id: int, rtf: float | None) -> dict[str, Any]:
-    """Run one point as a ``scenario run`` process on its own ROS domain; its row of the table."""
-    folder = out / f"point-{point.index:04d}"
-    folder.mkdir(parents=True, exist_ok=True)
-    file = folder / "scenario.yaml"
-    file.write_text(point.text)
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
-    env.setdefault("MUJOCO_GL", "egl")
-    command = [str(pathlib.Path(sys.executable).parent / "scenario"), "run", str(file), "--out", str(folder)]
-    if rtf is not None:
-        command += ["--rtf", f"{rtf:g}"]
-    started = time.monotonic()
-    with open(folder / "run.log", "wb") as log:
-        try:
-            code = subprocess.run(command, env=env, stdout=log, stderr=subprocess.STDOUT, timeout=RUN_WALL_LIMIT_S).returncode
-        except subprocess.TimeoutExpired:
-            code = -1
-    row: dict[str, Any] = {"point": point.index, **point.values, "seed": point.seed, "passed": False,
-                           "exit_code": code, "process_wall_s": round(time.monotonic() - started, 3)}
-    reports = sorted(folder.glob("*/report.json"))
-    if not reports:
-        row["failures"] = f"no report (exit code {code}); see {folder / 'run.log'}"
-        return row
-    report = json.loads(reports[-1].read_text())
-    row.update(passed=bool(report["passed"]), sim_time_s=report.get("sim_time_s"), wall_time_s=report.get("wall_time_s"),
-               folder=str(reports[-1].parent), failures="; ".join(report.get("failures", [])))
-    for expectation in report.get("expectations", []):
-        row[f"measured: {expectation['name']}"] = expectation.get("measured")
-    return row
-
-
 def run_sweep(scenario_path: pathlib.Path, grid: dict[str, list[Any]], seeds: Sequence[int], out: pathlib.Path,
               address: str | None = None, workers: int | None = None, rtf: float | None = None,
               stream: TextIO = sys.stdout) -> SweepResult:
@@ -187,19 +156,41 @@ def run_sweep(scenario_path: pathlib.Path, grid: dict[str, list[Any]], seeds: Se
         init["object_store_memory"] = 128 * 1024 * 1024  # rows are small; the default reserves a third of RAM
     started = time.monotonic()
     ray.init(**init)
+    rows: list[dict[str, Any]] = []
     try:
-        remote = ray.remote(num_cpus=1, max_retries=0)(run_point)
+        # One worker per CPU asked for (or per point, if fewer), each a process with its own ROS domain and a
+        # bring-up kept warm for the points it is handed, one at a time, as it finishes the last.
+        count = min(len(todo), int(init.get("num_cpus") or workers or len(todo)))
         base = int(os.environ.get("ROS_DOMAIN_ID", "0") or 0)
-        pending = {remote.remote(point, folder, 1 + (base + 1 + point.index) % DOMAIN_IDS, rtf): point for point in todo}
-        rows = []
+        actor = ray.remote(num_cpus=1, max_restarts=0)(SweepWorker)
+        pool: list[Any] = [actor.remote(k, 1 + (base + 1 + k) % DOMAIN_IDS, rtf) for k in range(count)]
+        queue = list(todo)
+        pending: dict[Any, tuple[int, Point]] = {}
+
+        def hand_out(k: int) -> None:
+            if queue:
+                point = queue.pop(0)
+                pending[pool[k].run.remote(point, folder)] = (k, point)
+
+        for k in range(count):
+            hand_out(k)
         while pending:
             done, _ = ray.wait(list(pending), num_returns=1)
-            point = pending.pop(done[0])
-            row = ray.get(done[0])
+            k, point = pending.pop(done[0])
+            try:
+                row = ray.get(done[0])
+            except ray.exceptions.RayError as error:  # the worker died: the point fails, a new worker takes over
+                row = {"point": point.index, **point.values, "seed": point.seed, "passed": False, "worker": k,
+                       "failures": f"the worker died: {type(error).__name__}"}
+                pool[k] = actor.remote(k, 1 + (base + 1 + k) % DOMAIN_IDS, rtf)
             rows.append(row)
+            hand_out(k)
             verdict = "PASS" if row["passed"] else "FAIL"
+            warm = "" if row.get("new_bringup", True) else ", warm bring-up"
             stream.write(f"  [{len(rows)}/{len(todo)}] {verdict}  {point.values} seed {point.seed}"
-                         f"  ({row['process_wall_s']:.1f} s wall incl. start-up)\n")
+                         f"  ({row.get('process_wall_s', 0.0):.1f} s wall incl. start-up{warm})\n")
+        started_bringups = sum(ray.get([worker.close.remote() for worker in pool]))
+        stream.write(f"{len(todo)} runs on {count} workers, {started_bringups} bring-ups\n")
     finally:
         ray.shutdown()
     rows.sort(key=lambda row: row["point"])
