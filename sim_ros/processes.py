@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import collections
+import contextlib
 import os
 import pathlib
 import signal
@@ -10,6 +11,7 @@ import subprocess
 import sys
 import tempfile
 import threading
+import time
 import typing
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -134,3 +136,44 @@ def child_processes(parent: int) -> dict[str, int]:
         if int(stat.rsplit(")", 1)[1].split()[1]) == parent and len(cmdline) > 1:
             found[pathlib.Path(cmdline[1].decode(errors="replace")).name] = int(entry.name)
     return found
+
+
+def tagged_processes(variable: str, tag_prefix: str) -> dict[int, str]:
+    """pid -> tag of this user's processes whose environment has ``variable`` set to a value starting with
+    ``tag_prefix`` (Linux /proc): what a tagged process started, at any depth. This process and its own
+    children are left out."""
+    entry = f"{variable}={tag_prefix}".encode()
+    found = {}
+    for proc in pathlib.Path("/proc").iterdir():
+        if not proc.name.isdigit() or int(proc.name) == os.getpid():
+            continue
+        try:
+            environ = (proc / "environ").read_bytes()
+            parent = int((proc / "stat").read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, IndexError, ValueError):
+            continue  # another user's process, or it ended meanwhile
+        start = environ.find(entry)
+        if start >= 0 and parent != os.getpid():
+            found[int(proc.name)] = environ[start + len(variable) + 1: environ.find(b"\0", start)].decode()
+    return found
+
+
+def stop_tagged_processes(variable: str, tag_prefix: str, select: typing.Callable[[str], bool] = lambda tag: True,
+                          grace_s: float = 5.0) -> list[int]:
+    """SIGINT the tagged processes (see :func:`tagged_processes`) whose tag ``select`` accepts (a bring-up leaves the
+    ROS graph cleanly on it), SIGKILL what is left after ``grace_s`` wall seconds. Returns the pids found."""
+
+    def left() -> list[int]:
+        return [pid for pid, tag in tagged_processes(variable, tag_prefix).items() if select(tag)]
+
+    pids = left()
+    for pid in pids:
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGINT)
+    deadline = time.monotonic() + grace_s
+    while time.monotonic() < deadline and any(pathlib.Path(f"/proc/{pid}").exists() for pid in pids):
+        time.sleep(0.05)  # polling the processes' end, bounded by the grace period
+    for pid in left():
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGKILL)
+    return pids

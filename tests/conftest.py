@@ -8,7 +8,6 @@ other either.
 
 from __future__ import annotations
 
-import contextlib
 import os
 import uuid
 
@@ -26,13 +25,13 @@ os.environ[WORKER_TAG_VARIABLE] = f"{os.environ['SIM_TEST_RUN']}/{os.environ.get
 import faulthandler  # noqa: E402  (after the environment above, which must come first)
 import pathlib  # noqa: E402
 import shutil  # noqa: E402
-import signal  # noqa: E402
 import tempfile  # noqa: E402
-import time  # noqa: E402
 
 import pytest  # noqa: E402
 from xdist.scheduler import LoadFileScheduling  # noqa: E402
 from xdist.workermanage import WorkerController  # noqa: E402
+
+from sim_ros import processes  # noqa: E402
 
 HANG_DIR_VARIABLE = "SIM_TEST_HANG_DIR"  # the folder where a hung test's stacks are written (workers inherit it)
 TEST_WATCHDOG_S = float(os.environ.get("SIM_TEST_WATCHDOG_S", "600"))  # [s] wall: a test (set-up to tear-down) longer is hung
@@ -92,43 +91,10 @@ def pytest_runtest_protocol(item, nextitem):
     path.unlink()
 
 
-def tagged_processes(tag_prefix: str) -> dict[int, str]:
-    """pid -> worker tag of this user's processes whose environment has a ``SIM_TEST_WORKER_TAG`` starting with
-    ``tag_prefix``: what workers started. This process and its own children (the workers themselves) are left out."""
-    entry = f"{WORKER_TAG_VARIABLE}={tag_prefix}".encode()
-    found = {}
-    for proc in pathlib.Path("/proc").iterdir():
-        if not proc.name.isdigit() or int(proc.name) == os.getpid():
-            continue
-        try:
-            environ = (proc / "environ").read_bytes()
-            parent = int((proc / "stat").read_text().rsplit(")", 1)[1].split()[1])
-        except (OSError, IndexError, ValueError):
-            continue  # another user's process, or it ended meanwhile
-        start = environ.find(entry)
-        if start >= 0 and parent != os.getpid():
-            found[int(proc.name)] = environ[start + len(WORKER_TAG_VARIABLE) + 1: environ.find(b"\0", start)].decode()
-    return found
-
-
 def stop_tagged_processes(tag_prefix: str, worker: str | None = None, grace_s: float = 5.0) -> list[int]:
-    """SIGINT the processes workers left (a bring-up leaves the ROS graph cleanly on it), SIGKILL what is left after
-    ``grace_s`` wall seconds. Only those of ``worker`` (e.g. "gw0") when given. Returns the pids found."""
-
-    def left() -> list[int]:
-        return [pid for pid, tag in tagged_processes(tag_prefix).items() if worker is None or tag.endswith(f"/{worker}")]
-
-    pids = left()
-    for pid in pids:
-        with contextlib.suppress(ProcessLookupError):
-            os.kill(pid, signal.SIGINT)
-    deadline = time.monotonic() + grace_s
-    while time.monotonic() < deadline and any(pathlib.Path(f"/proc/{pid}").exists() for pid in pids):
-        time.sleep(0.05)  # polling the processes' end, bounded by the grace period
-    for pid in left():
-        with contextlib.suppress(ProcessLookupError):
-            os.kill(pid, signal.SIGKILL)
-    return pids
+    """Stop the processes workers left (those of ``worker``, e.g. "gw0", when given); returns the pids found."""
+    return processes.stop_tagged_processes(WORKER_TAG_VARIABLE, tag_prefix,
+                                           lambda tag: worker is None or tag.endswith(f"/{worker}"), grace_s)
 
 
 FROZEN_RUNS: list[str] = []  # the controller's: tests whose worker the watchdog ended, each run once more

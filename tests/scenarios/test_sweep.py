@@ -43,27 +43,33 @@ def test_every_point_is_validated_before_anything_runs():
         points(path, parse_grid(["steps.0.send_goal.goal.speed=[fast]"]), [0])
 
 
-def test_a_small_sweep_runs_on_ray_and_writes_its_table_and_plot(tmp_path):
+def test_a_small_sweep_runs_on_ray_on_warm_workers_and_writes_its_table_and_plot(tmp_path):
+    """Three points on two workers: two bring-ups, the third point on the warm one of the worker that finished first."""
     path = schema.find("reset_and_stand_panda")
     out = io.StringIO()
-    result = run_sweep(path, parse_grid(["steps.1.wait.duration=[0.4, 0.8]"]), [0], tmp_path, workers=2, stream=out)
-    assert len(result.rows) == 2 and result.passed == 2, out.getvalue()
+    result = run_sweep(path, parse_grid(["steps.1.wait.duration=[0.4, 0.8, 1.2]"]), [0], tmp_path, workers=2, stream=out)
+    assert len(result.rows) == 3 and result.passed == 3, out.getvalue()
+    assert "3 runs on 2 workers, 2 bring-ups" in out.getvalue(), out.getvalue()
+    assert sorted(row["new_bringup"] for row in result.rows) == [False, True, True]
     rows = list(csv.DictReader(io.StringIO((result.folder / "sweep.csv").read_text())))
-    assert [float(row["steps.1.wait.duration"]) for row in rows] == [0.4, 0.8]
-    # each run really ran its own value: the sim time of the run follows the grid
-    assert [float(row["sim_time_s"]) for row in rows] == [pytest.approx(0.4, abs=0.05), pytest.approx(0.8, abs=0.05)]
+    assert [float(row["steps.1.wait.duration"]) for row in rows] == [0.4, 0.8, 1.2]
+    # each run really ran its own value, the warm one too: the sim time of the run follows the grid
+    assert [float(row["sim_time_s"]) for row in rows] == [pytest.approx(v, abs=0.05) for v in (0.4, 0.8, 1.2)]
     assert all(row["passed"] == "True" for row in rows)
-    assert json.loads((result.folder / "sweep.json").read_text())["grid"] == {"steps.1.wait.duration": [0.4, 0.8]}
+    assert json.loads((result.folder / "sweep.json").read_text())["grid"] == {"steps.1.wait.duration": [0.4, 0.8, 1.2]}
     assert (result.folder / "sweep.png").stat().st_size > 10_000
 
 
-def test_a_worker_keeps_its_bring_up_warm_for_the_points_it_runs(tmp_path):
-    """Three points on one worker: one bring-up; the later points start in a reset, not a start-up, and each
-    runs its own value."""
+def test_a_point_that_runs_past_the_limit_fails_and_its_worker_and_bring_up_are_stopped(tmp_path, monkeypatch):
+    """A hung worker would hold the sweep for ever: past the limit its point fails, the worker and the processes it
+    started end, and the sweep goes on. Here the limit is 10 s and the point waits 120 s at real time."""
+    from sim_client.scenario.running import sweep
+    from sim_client.scenario.running.sweep_worker import WORKER_TAG_VARIABLE
+    from sim_ros.processes import tagged_processes
+
+    monkeypatch.setattr(sweep, "RUN_WALL_LIMIT_S", 10.0)
     path = schema.find("reset_and_stand_panda")
     out = io.StringIO()
-    result = run_sweep(path, parse_grid(["steps.1.wait.duration=[0.4, 0.8, 1.2]"]), [0], tmp_path, workers=1, stream=out)
-    assert result.passed == 3, out.getvalue()
-    assert "3 runs on 1 workers, 1 bring-ups" in out.getvalue(), out.getvalue()
-    assert [row["new_bringup"] for row in result.rows] == [True, False, False]
-    assert [row["sim_time_s"] for row in result.rows] == [pytest.approx(v, abs=0.05) for v in (0.4, 0.8, 1.2)]
+    result = run_sweep(path, parse_grid(["steps.1.wait.duration=[120.0]"]), [0], tmp_path, workers=1, rtf=1.0, stream=out)
+    assert result.passed == 0 and "took longer than 10 s" in result.rows[0]["failures"], out.getvalue()
+    assert not tagged_processes(WORKER_TAG_VARIABLE, ""), "the worker's bring-up was stopped"

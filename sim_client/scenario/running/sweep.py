@@ -28,9 +28,11 @@ from typing import Any, TextIO
 import yaml
 
 from sim_client.scenario.model import schema
-from sim_client.scenario.running.sweep_worker import SweepWorker
+from sim_client.scenario.running.sweep_worker import WORKER_TAG_VARIABLE, SweepWorker
+from sim_ros.processes import stop_tagged_processes
 
 DOMAIN_IDS = 101  # Fast DDS domain ids 1..101 are safe for its port scheme; 0 is everyone's default
+RUN_WALL_LIMIT_S = 1800.0  # [s] a point running longer has hung: its worker and its processes are stopped
 
 
 class SweepError(Exception):
@@ -157,42 +159,55 @@ def run_sweep(scenario_path: pathlib.Path, grid: dict[str, list[Any]], seeds: Se
     started = time.monotonic()
     ray.init(**init)
     rows: list[dict[str, Any]] = []
+    sweep_tag = f"{os.getpid()}-{time.monotonic_ns()}"
     try:
         # One worker per CPU asked for (or per point, if fewer), each a process with its own ROS domain and a
         # bring-up kept warm for the points it is handed, one at a time, as it finishes the last.
         count = min(len(todo), int(init.get("num_cpus") or workers or len(todo)))
         base = int(os.environ.get("ROS_DOMAIN_ID", "0") or 0)
         actor = ray.remote(num_cpus=1, max_restarts=0)(SweepWorker)
-        pool: list[Any] = [actor.remote(k, 1 + (base + 1 + k) % DOMAIN_IDS, rtf) for k in range(count)]
+
+        def new_worker(k: int) -> Any:
+            return actor.remote(k, 1 + (base + 1 + k) % DOMAIN_IDS, rtf, f"{sweep_tag}/{k}")
+
+        pool: list[Any] = [new_worker(k) for k in range(count)]
         queue = list(todo)
-        pending: dict[Any, tuple[int, Point]] = {}
+        pending: dict[Any, tuple[int, Point, float]] = {}  # a point's result -> its worker, the point, its deadline
 
         def hand_out(k: int) -> None:
             if queue:
                 point = queue.pop(0)
-                pending[pool[k].run.remote(point, folder)] = (k, point)
+                pending[pool[k].run.remote(point, folder)] = (k, point, time.monotonic() + RUN_WALL_LIMIT_S)
 
         for k in range(count):
             hand_out(k)
         while pending:
-            done, _ = ray.wait(list(pending), num_returns=1)
-            k, point = pending.pop(done[0])
-            try:
-                row = ray.get(done[0])
-            except ray.exceptions.RayError as error:  # the worker died: the point fails, a new worker takes over
-                row = {"point": point.index, **point.values, "seed": point.seed, "passed": False, "worker": k,
-                       "failures": f"the worker died: {type(error).__name__}"}
-                pool[k] = actor.remote(k, 1 + (base + 1 + k) % DOMAIN_IDS, rtf)
-            rows.append(row)
-            hand_out(k)
-            verdict = "PASS" if row["passed"] else "FAIL"
-            warm = "" if row.get("new_bringup", True) else ", warm bring-up"
-            stream.write(f"  [{len(rows)}/{len(todo)}] {verdict}  {point.values} seed {point.seed}"
-                         f"  ({row.get('process_wall_s', 0.0):.1f} s wall incl. start-up{warm})\n")
+            done, _ = ray.wait(list(pending), num_returns=1, timeout=max(0.0, min(d for _, _, d in pending.values())
+                                                                          - time.monotonic()))
+            late = [ref for ref, (_, _, deadline) in pending.items() if deadline <= time.monotonic()]
+            for ref in done or late[:1]:
+                k, point, _ = pending.pop(ref)
+                try:
+                    if not done:  # hung past the limit: the worker, and every process it started, is stopped
+                        ray.kill(pool[k])
+                        stop_tagged_processes(WORKER_TAG_VARIABLE, f"{sweep_tag}/{k}")
+                        raise TimeoutError(f"the run took longer than {RUN_WALL_LIMIT_S:.0f} s")
+                    row = ray.get(ref)
+                except (ray.exceptions.RayError, TimeoutError) as error:  # the point fails, a new worker takes over
+                    row = {"point": point.index, **point.values, "seed": point.seed, "passed": False, "worker": k,
+                           "failures": f"the worker died or hung: {type(error).__name__}: {error}"}
+                    pool[k] = new_worker(k)
+                rows.append(row)
+                hand_out(k)
+                verdict = "PASS" if row["passed"] else "FAIL"
+                warm = "" if row.get("new_bringup", True) else ", warm bring-up"
+                stream.write(f"  [{len(rows)}/{len(todo)}] {verdict}  {point.values} seed {point.seed}"
+                             f"  ({row.get('process_wall_s', 0.0):.1f} s wall incl. start-up{warm})\n")
         started_bringups = sum(ray.get([worker.close.remote() for worker in pool]))
         stream.write(f"{len(todo)} runs on {count} workers, {started_bringups} bring-ups\n")
     finally:
         ray.shutdown()
+        stop_tagged_processes(WORKER_TAG_VARIABLE, f"{sweep_tag}/")  # (none after a sweep that ended well)
     rows.sort(key=lambda row: row["point"])
     result = SweepResult(folder, rows)
     write_table(result, grid)

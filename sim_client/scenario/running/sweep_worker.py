@@ -15,6 +15,8 @@ import time
 import traceback
 from typing import Any
 
+WORKER_TAG_VARIABLE = "SIM_SWEEP_WORKER"  # in the environment of a worker and of everything it starts
+
 
 class SweepWorker:
     """Runs points on one ROS domain (set before rclpy is imported in this process) and one warm bring-up.
@@ -23,9 +25,11 @@ class SweepWorker:
         index: the worker's number (in the rows).
         domain_id: its ROS domain.
         rtf: the pace of every run (None: each scenario's own).
+        tag: set in the environment as ``SIM_SWEEP_WORKER``, which every process the worker starts inherits.
     """
 
-    def __init__(self, index: int, domain_id: int, rtf: float | None) -> None:
+    def __init__(self, index: int, domain_id: int, rtf: float | None, tag: str) -> None:
+        os.environ[WORKER_TAG_VARIABLE] = tag  # its bring-ups inherit it: stopped by it if the worker hangs
         os.environ["ROS_DOMAIN_ID"] = str(domain_id)
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
         os.environ.setdefault("MUJOCO_GL", "egl")
