@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
 
 import pytest
 
@@ -72,4 +73,4 @@ def test_a_point_that_runs_past_the_limit_fails_and_its_worker_and_bring_up_are_
     out = io.StringIO()
     result = run_sweep(path, parse_grid(["steps.1.wait.duration=[120.0]"]), [0], tmp_path, workers=1, rtf=1.0, stream=out)
     assert result.passed == 0 and "took longer than 10 s" in result.rows[0]["failures"], out.getvalue()
-    assert not tagged_processes(WORKER_TAG_VARIABLE, ""), "the worker's bring-up was stopped"
+    assert not tagged_processes(WORKER_TAG_VARIABLE, f"{os.getpid()}-"), "the worker's bring-up was stopped"
