@@ -194,7 +194,8 @@ class SimNode(LifecycleNode):
                 self._made.destroy(self)
                 self._configure_scene(robot)
         except Exception:
-            with self._lock:  # what the new scene made is gone (MadeEntities.made_by): the old scene back, afresh
+            with self._lock:  # nothing of the new scene is left (made_by, or here), and the old scene is back, afresh
+                self._made.destroy(self)
                 self._configure_scene(old)
             raise
         finally:
