@@ -77,4 +77,7 @@ STREAMS = QoSProfile(depth=STREAM_HISTORY_DEPTH)  # /clock and /joint_states
 SKILL_QOS = QoSProfile(depth=100)  # the goal protocol's topics, both ways
 # An action's feedback, on the servers' publishers and the project's clients. rclpy's default keeps 10 messages:
 # a client held up for a moment lost some (a free-running sim sends feedback many times faster than real time).
-FEEDBACK_QOS = QoSProfile(depth=100)
+# Transient local: a goal's first feedback published before the server's side of discovery had matched a new
+# client's reader reaches it once matched (a lock-stepped run waits for that first message, and /sim, paused,
+# sends no other: a fresh run once waited 30 s for it). Volatile readers (ros2cli's) are served as before.
+FEEDBACK_QOS = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
