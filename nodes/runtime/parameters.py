@@ -92,6 +92,14 @@ def declare(node: Node, specs: tuple[ParameterSpec, ...]) -> None:
 PARAMETER_TYPES = {value: name for name, value in vars(ParameterType).items() if name.startswith("PARAMETER_")}
 
 
+def report_read_only(node: Node, name: str, value: Any) -> None:
+    """Give a read-only parameter the value the node now has (e.g. the scene loaded since start-up): users cannot set
+    it, and rclpy's ``set_parameters`` refuses a read-only one, so its table entry is replaced."""
+    from rclpy.parameter import Parameter
+
+    node._parameters[name] = Parameter(name, value=value)
+
+
 def parameter_problem(parameter: ParameterMsg) -> str:
     """Why a parameter message cannot be judged at all ("" when it can); rclpy's services raise on these."""
     if not parameter.name:

@@ -7,9 +7,9 @@ from collections.abc import Callable
 
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 
 import robot_models
+from nodes.runtime.parameters import report_read_only
 from robot_models import RobotSpec
 from sim_ros.names import LATCHED, WORLD_TOPIC
 from simulation_interfaces.msg import WorldResource
@@ -29,7 +29,7 @@ def follow_world(node: Node, robot: RobotSpec, on_scene: Callable[[RobotSpec], N
         current[0] = scene
         gc.collect()  # the old model is in reference cycles: freed now, not at the next full collection
         if node.has_parameter("scene"):
-            node._parameters["scene"] = Parameter("scene", value=scene)  # read-only for users: it says what runs
+            report_read_only(node, "scene", scene)  # it says what runs
         node.get_logger().info(f"/sim loaded the scene {scene!r}: goals are validated on it")
 
     node.create_subscription(WorldResource, WORLD_TOPIC, on_world, LATCHED, callback_group=MutuallyExclusiveCallbackGroup())

@@ -25,7 +25,7 @@ from rclpy.parameter import Parameter
 import robot_models
 from nodes.runtime.executor import ServerExecutor, drop_qos_event_handlers
 from nodes.runtime.memory import map_large_buffers, release_build_memory
-from nodes.runtime.parameters import ParameterSpec, StartupError, declare, guard_parameter_services
+from nodes.runtime.parameters import ParameterSpec, StartupError, declare, guard_parameter_services, report_read_only
 from nodes.runtime.startup import (
     StopRequest,
     bounded_cleanup,
@@ -212,7 +212,7 @@ class SimNode(LifecycleNode):
 
     def _configure_scene(self, robot: robot_models.RobotSpec) -> None:
         """Under the lock: build ``robot``'s scene on a node whose last scene was destroyed, with the node's settings."""
-        self._parameters["scene"] = Parameter("scene", value=robot.scene)  # read-only for users: it says what is loaded
+        report_read_only(self, "scene", robot.scene)  # it says what is loaded
         self._configure(robot)
         assert self.plugins is not None
         self.plugins.on_parameters(list(self._parameters.values()))  # the node's settings carry over
