@@ -27,6 +27,7 @@ from rclpy.action import ActionClient
 from rclpy.action.client import ClientGoalHandle
 from unique_identifier_msgs.msg import UUID
 
+from sim_client.parameters import ParameterError, Parameters
 from sim_interfaces.action import MoveArm, NavigateToPose, PickPlace, Walk
 from sim_interfaces.srv import Push
 from sim_ros.names import FEEDBACK_QOS
@@ -97,6 +98,16 @@ class FeedbackSample(Generic[FeedbackT]):
 
     sim_time: float
     feedback: FeedbackT
+
+
+def feedback_elapsed_s(feedback: Any) -> float | None:
+    """The sim time [s] since its goal started that a feedback message reports (``elapsed``, or Navigate's
+    ``navigation_time``); None for an action whose feedback has neither."""
+    for name in ("elapsed", "navigation_time"):
+        duration = getattr(feedback, name, None)
+        if duration is not None:
+            return float(duration.sec) + float(duration.nanosec) * 1e-9
+    return None
 
 
 class GoalHandle(Generic[FeedbackT, ResultT]):
@@ -264,6 +275,20 @@ class SimActionClient(Generic[GoalT, FeedbackT, ResultT]):
 
     def server_ready(self) -> bool:
         return bool(self._client.server_is_ready())
+
+    def feedback_period_s(self) -> float | None:
+        """[s of sim time] between two feedback messages of this action's server: its ``feedback_rate``
+        parameter, asked of the node that publishes the feedback; None when no such node answers."""
+        node = self.session.node
+        for info in node.get_publishers_info_by_topic(node.resolve_topic_name(f"{self.name}/_action/feedback")):
+            try:
+                rate = Parameters(self.session, f"{info.node_namespace.rstrip('/')}/{info.node_name}", 2.0).get(
+                    "feedback_rate")
+            except (ParameterError, WaitTimeout):
+                continue
+            if isinstance(rate, int | float) and rate > 0:
+                return 1.0 / float(rate)
+        return None
 
     def send(self, goal: GoalT, timeout: float = 30.0) -> GoalHandle[FeedbackT, ResultT]:
         """Send a goal and wait (``timeout`` wall seconds) for it to be accepted or rejected.

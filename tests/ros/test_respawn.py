@@ -76,7 +76,10 @@ def test_a_client_of_a_killed_server_gets_a_result_and_the_restarted_server_serv
         assert first is not None
         os.kill(first, signal.SIGKILL)
         # The ROS action protocol answers a result only from the goal's server; bringup answers for a dead one.
-        outcome = result(client, sent, timeout=30.0)
+        try:
+            outcome = result(client, sent, timeout=30.0)
+        except WaitTimeout as timeout:
+            raise AssertionError(f"{timeout}; bringup's last output:\n{bringup.output()[-6000:]}") from timeout
         assert outcome.status == GoalStatus.STATUS_ABORTED
         assert outcome.result.error_code == action_type.Result.SIM_FAULT
         assert f"({executable}) died with exit code -9" in outcome.result.error_msg

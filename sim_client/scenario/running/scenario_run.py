@@ -21,7 +21,7 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Image, JointState
 
 import robot_models
-from sim_client.actions import ACTION_CLIENTS, GoalHandle, SimActionClient, push_request
+from sim_client.actions import ACTION_CLIENTS, GoalHandle, SimActionClient, feedback_elapsed_s, push_request
 from sim_client.parameters import ParameterError, Parameters
 from sim_client.scenario.model.actions import ACTIONS
 from sim_client.scenario.model.conditions import Condition, Trigger
@@ -421,12 +421,16 @@ class ScenarioRun:
             periods = {}
         slack = {topic: periods.get(topic, 0.05) + exact for topic in self.streams}
 
+        feedback_due = self._feedback_due(end)
+
         def latest_s(recorder: TopicRecorder[Any]) -> float:
             latest = recorder.latest
             return -math.inf if latest is None else stamp_s(latest.header.stamp)
 
         def arrived() -> bool:
             if latest_s(self.odom) < end - 0.05 or latest_s(self.joints) < end - slack[self.streams[1]]:
+                return False
+            if not all(handle.done or (feedback_elapsed_s(handle.feedback) or 0.0) >= due for handle, due in feedback_due):
                 return False
             if self.mcap is None:
                 return True
@@ -435,10 +439,31 @@ class ScenarioRun:
                        for topic in self.streams if topic in recorded.counts)
 
         try:
-            self.session.wait_for(arrived, 10.0, "the final /odom, /joint_states and /clock")
+            self.session.wait_for(arrived, 10.0, "the final /odom, /joint_states, /clock and goal feedback")
         except (WaitTimeout, RecordingError) as error:
             self.warnings.append(f"{error}: measures and the recording may miss the run's last state")
             self.progress.say(f"  WARN  {self.warnings[-1]}")
+
+    def _feedback_due(self, end: float) -> list[tuple[GoalHandle, float]]:
+        """Lock-stepped, each goal still running at ``end`` and the ``elapsed`` its feedback reaches by then.
+
+        A server relays /sim's measured feedback from its own process, from the goal states /sim publishes
+        every 1/``state_rate``, one at most every ``feedback_rate`` of sim time: the last messages of a run
+        can still be on their way when the last step returns (a feedback measure once read a walk's
+        distance from long before the end, on a loaded machine). The last one relayed by ``end`` is at most
+        a feedback period and a state period older.
+        """
+        due: list[tuple[GoalHandle, float]] = []
+        running = {goal_id: handle for goal_id, handle in self.goals.items()
+                   if handle.accepted and not handle.done and feedback_elapsed_s(handle.feedback) is not None}
+        state_rate = self.parameter("sim", "state_rate") if self.lock_step and running else None
+        if not isinstance(state_rate, int | float) or state_rate <= 0:
+            return due
+        for goal_id, handle in running.items():
+            period = self.clients[self.goal_actions[goal_id]].feedback_period_s()
+            if period is not None:
+                due.append((handle, end - self.marks[f"{goal_id}.sent"] - period - 1.0 / state_rate - 1e-6))
+        return due
 
     def _finish_goals(self) -> None:
         for goal_id, handle in self.goals.items():
