@@ -15,6 +15,10 @@ server; a cancel gets ``ERROR_GOAL_TERMINATED``. Later requests about those goal
 same way at once, and so is a request about a goal no status listed while no server runs (from the death
 until bringup starts the server again: the goal can only be the dead server's). The robot itself
 stops when its server goes silent (the skill in ``/sim`` ends).
+
+The keeper can answer only the requests DDS delivered to it: those sent after its side of discovery
+matched the client's writers. A client whose endpoints it has not yet matched (seconds after the client
+appeared, on a loaded machine) and whose server dies in that time is not answered.
 """
 
 from __future__ import annotations

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
 import mujoco
@@ -19,6 +20,7 @@ from sim_bridge.fetch.bimanual import grip_forces, palms_of, tilt_of
 from sim_bridge.fetch.rig import FetchRig
 from sim_bridge.locomotion import LocomotionMode
 from sim_bridge.skills import SkillRun, SkillStatus
+from tests.forks import in_fork
 
 PLACE = (1.02, -2.8)  # on the second table, 12 cm inside its edge facing the robot's side
 MAX_SIM_S = 150.0
@@ -40,10 +42,26 @@ def robot() -> robot_models.RobotSpec:
     return robot_models.load(robot_models.G1, "tables")
 
 
-def _run(rig: FetchRig, skill: FetchSkill, run: SkillRun, trace: Trace, until: float = MAX_SIM_S) -> None:
+@dataclass
+class Branch:
+    """A test that branches off the module's one fetch (a forked copy of the process, :func:`tests.forks.in_fork`)
+    at the first step where ``when()`` holds, and runs ``check()`` there."""
+
+    when: Callable[[], bool]
+    check: Callable[[], None]
+    failure: str | None = None
+    ran: bool = False
+
+
+def _run(rig: FetchRig, skill: FetchSkill, run: SkillRun, trace: Trace, until: float = MAX_SIM_S,
+         branches: Iterable[Branch] = ()) -> None:
     sim = rig.sim
+    waiting = list(branches)
     while run.status is SkillStatus.RUNNING and sim.time < until:
         sim.step(1)
+        for branch in [branch for branch in waiting if run.status is SkillStatus.RUNNING and branch.when()]:
+            branch.failure, branch.ran = in_fork(branch.check), True
+            waiting.remove(branch)
         if run.status is SkillStatus.RUNNING:
             if not trace.stages or trace.stages[-1] != skill.milestone:
                 trace.stages.append(skill.milestone)
@@ -68,14 +86,22 @@ def idle_rig(robot) -> FetchRig:
 
 @pytest.fixture(scope="module")
 def fetched(robot):
+    """The module's one fetch of the box, run to its end; the tests of a cancel and of a drop while carrying
+    branch off it where the box is carried (they ran the same fetch to there, each on its own, before)."""
     rig = FetchRig.of(robot)
     skill = rig.skill(FetchGoal("box", *PLACE))
     run = rig.legs.start(1, skill, rig.sim.model, rig.sim.data)
     trace = Trace()
-    _run(rig, skill, run, trace)
+    branches = {
+        "dropped": Branch(lambda: skill.stage >= PickPlaceStage.TRANSPORT, lambda: _drop_it(rig, skill, run)),
+        "canceled": Branch(lambda: skill.stage is PickPlaceStage.TRANSPORT
+                           and skill.feedback(rig.sim.data)["phase"] == "navigate_place",
+                           lambda: _cancel_carrying(rig, skill, run)),
+    }
+    _run(rig, skill, run, trace, branches=branches.values())
     trace.final_mode = rig.walker.status().mode
     _release(rig)
-    return rig, skill, run, trace
+    return rig, skill, run, trace, branches
 
 
 def _release(rig: FetchRig) -> None:
@@ -84,7 +110,7 @@ def _release(rig: FetchRig) -> None:
 
 
 def test_the_g1_fetches_the_box_to_the_second_table(fetched):
-    rig, skill, run, trace = fetched
+    rig, skill, run, trace, _ = fetched
     assert run.outcome is not None and run.status is SkillStatus.SUCCEEDED, (run.outcome, skill.events)
     box = rig.sim.data.body("box")
     place = np.array([*PLACE, g1_tables.PLACE_TABLE.top_z + g1_tables.BOX.half_size[2]])
@@ -105,7 +131,7 @@ def test_carrying_the_box_the_gait_stays_as_steady_as_unloaded(fetched):
     """The whole-body QP takes the box's measured contact forces on the palms in (sim_bridge.locomotion.external):
     walking with the box, the pelvis tilts about as little as walking without it (0.08 against 0.06 deg RMS
     measured; 0.23 when the QP did not know of the box)."""
-    _, _, _, trace = fetched
+    _, _, _, trace, _ = fetched
     rms = [math.sqrt(float(np.mean(np.square(tilts)))) for tilts in (trace.tilt_walking_deg, trace.tilt_carrying_deg)]
     assert len(trace.tilt_carrying_deg) > 100 and rms[1] <= 2.0 * rms[0] + 0.02, f"pelvis tilt RMS unloaded / carrying: {rms}"
     weight = g1_tables.BOX.mass_kg * 9.81
@@ -114,7 +140,7 @@ def test_carrying_the_box_the_gait_stays_as_steady_as_unloaded(fetched):
 
 
 def test_the_fetch_reports_every_stage_in_order(fetched):
-    _, skill, run, trace = fetched
+    _, skill, run, trace, _ = fetched
     assert trace.stages == sorted(trace.stages), trace.stages
     assert trace.stages == [int(stage) for stage in PickPlaceStage], skill.events
     feedback = run.final_feedback
@@ -229,19 +255,13 @@ def test_a_stance_beside_a_table_leg_moves_sideways_away_from_it(robot):
     assert plan_stance(first, 1.02, 0.0, 0.0, config, math.pi, 0.0, feet, legs) == plan_stance(first, 1.02, 0.0, 0.0, config)
 
 
-def test_cancel_while_carrying_stops_and_stands_holding_the_box_and_a_new_fetch_carries_it_on(robot):
-    rig = FetchRig.of(robot)
-    skill = rig.skill(FetchGoal("box", *PLACE))
-    run = rig.legs.start(3, skill, rig.sim.model, rig.sim.data)
+def _cancel_carrying(rig: FetchRig, skill: FetchSkill, run: SkillRun) -> None:
+    """Two seconds into the walk with the box: a cancel, then a new fetch of the box it holds."""
     trace = Trace()
-    sim = rig.sim
-    while run.status is SkillStatus.RUNNING and sim.time < MAX_SIM_S:
-        sim.step(1)
-        if skill.stage is PickPlaceStage.TRANSPORT and skill.feedback(sim.data)["phase"] == "navigate_place":
-            break
+    sim, robot = rig.sim, rig.robot
     sim.step(round(2.0 / sim.control_timestep))  # walking with the box
     assert run.status is SkillStatus.RUNNING and rig.walker.status().mode is LocomotionMode.WALKING
-    rig.legs.cancel("legs", 3)
+    rig.legs.cancel("legs", 1)
     _run(rig, skill, run, trace, until=sim.time + 15.0)
     assert run.outcome is not None and run.status is SkillStatus.CANCELED, run.outcome
     assert "holding the object" in run.outcome.message
@@ -263,13 +283,14 @@ def test_cancel_while_carrying_stops_and_stands_holding_the_box_and_a_new_fetch_
     assert np.linalg.norm(sim.data.body("box").xpos[:2] - np.array(PLACE)) < 0.02
 
 
-def test_an_object_that_leaves_the_palms_while_carried_ends_the_fetch_as_dropped(robot):
-    rig = FetchRig.of(robot)
-    skill = rig.skill(FetchGoal("box", *PLACE))
-    run = rig.legs.start(4, skill, rig.sim.model, rig.sim.data)
-    sim = rig.sim
-    while run.status is SkillStatus.RUNNING and skill.stage < PickPlaceStage.TRANSPORT:
-        sim.step(1)
+def test_cancel_while_carrying_stops_and_stands_holding_the_box_and_a_new_fetch_carries_it_on(fetched):
+    branch = fetched[4]["canceled"]
+    assert branch.ran and branch.failure is None, f"the cancel while carrying, in its branch of the fetch:\n{branch.failure}"
+
+
+def _drop_it(rig: FetchRig, skill: FetchSkill, run: SkillRun) -> None:
+    """A hundred steps into the carry, the box is taken out of the palms."""
+    sim, robot = rig.sim, rig.robot
     sim.step(100)
     assert run.status is SkillStatus.RUNNING and skill.stage is PickPlaceStage.TRANSPORT
     adr, dof = int(robot.model.joint("box").qposadr[0]), int(robot.model.joint("box").dofadr[0])
@@ -281,4 +302,8 @@ def test_an_object_that_leaves_the_palms_while_carried_ends_the_fetch_as_dropped
     assert "lies at" in run.outcome.message and "TRANSPORT" in run.outcome.message
     sim.step(round(3.0 / sim.control_timestep))
     assert rig.walker.status().mode is LocomotionMode.STANDING, "the robot stopped"
-    _release(rig)
+
+
+def test_an_object_that_leaves_the_palms_while_carried_ends_the_fetch_as_dropped(fetched):
+    branch = fetched[4]["dropped"]
+    assert branch.ran and branch.failure is None, f"the drop while carrying, in its branch of the fetch:\n{branch.failure}"

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -19,6 +20,7 @@ from sim_bridge.fetch.one_hand import finger_forces, holds
 from sim_bridge.fetch.rig import FetchRig
 from sim_bridge.locomotion import LocomotionMode
 from sim_bridge.skills import SkillRun, SkillStatus
+from tests.forks import in_fork
 
 PLACE = (1.02, -2.8)  # on the second table, 12 cm inside its edge facing the robot's side
 CUBE = g1_tables.CUBE
@@ -74,14 +76,36 @@ def _on_a_table(x: float, y: float) -> bool:
     return any(x0 <= x <= x1 and y0 <= y <= y1 for x0, x1, y0, y1 in (t.xy_bounds for t in g1_tables.TABLES))
 
 
-@pytest.mark.parametrize(("phase", "after_s", "stage"), [("navigate_pick", 2.0, "APPROACH"), ("reach", 0.3, "DESCEND"),
-                                                         ("close", 0.5, "GRASP")])
-def test_a_cancel_before_the_lift_stops_and_stands_and_the_cube_stays_on_its_table(robot, phase, after_s, stage):
-    """Walking to the cube, reaching for it, closing the fingers on it (then the hand holds it where it rests)."""
+BEFORE_THE_LIFT = (("navigate_pick", 2.0, "APPROACH"), ("reach", 0.3, "DESCEND"), ("close", 0.5, "GRASP"))
+
+
+@dataclass
+class Trunk:
+    """One fetch of the cube, run once to 0.8 s into the lift: each cancel before the lift branched off it."""
+
+    rig: FetchRig
+    skill: OneHandFetch
+    run: SkillRun
+    branches: dict[str, str | None]  # phase -> why its cancel failed (None: passed)
+
+
+@pytest.fixture(scope="module")
+def trunk(robot) -> Trunk:
+    """The fetch every test here starts with, stepped once: at each cancel point before the lift, a forked copy of
+    this process cancels there and checks what the test names (:func:`tests.forks.in_fork`: the state a fresh
+    run would have at that instant, exactly); the fetch itself goes on, never canceled, to the lift."""
     rig = FetchRig.of(robot)
     skill, run = _start(rig, 1)
-    _step_until(rig, run, _in_phase(rig, skill, phase, after_s), MAX_SIM_S)
-    assert run.status is SkillStatus.RUNNING, (run.outcome, skill.events)
+    branches: dict[str, str | None] = {}
+    for phase, after_s, stage in BEFORE_THE_LIFT:
+        _step_until(rig, run, _in_phase(rig, skill, phase, after_s), MAX_SIM_S)
+        assert run.status is SkillStatus.RUNNING, (run.outcome, skill.events)
+        branches[phase] = in_fork(lambda phase=phase, stage=stage: _cancel_before_the_lift(rig, skill, run, phase, stage))
+    _step_until(rig, run, _in_phase(rig, skill, "lift", 0.8), MAX_SIM_S)
+    return Trunk(rig, skill, run, branches)
+
+
+def _cancel_before_the_lift(rig: FetchRig, skill: OneHandFetch, run: SkillRun, phase: str, stage: str) -> None:
     _cancel(rig, run, 1)
     assert run.outcome is not None and f"canceled in stage {stage}" in run.outcome.message, run.outcome
     cube = rig.sim.data.body(CUBE.name)
@@ -92,22 +116,26 @@ def test_a_cancel_before_the_lift_stops_and_stands_and_the_cube_stays_on_its_tab
         assert "holding the object" in run.outcome.message
         forces = finger_forces(rig.sim.model, rig.sim.data, skill.hand, rig.sim.model.body(CUBE.name).id)
         assert holds(forces, skill.hand, skill.hand_config.hold_force_n), forces
-    rig.sim.set_controller(Slot.LOCOMOTION, None)  # the legs back to their servos: the model is shared
 
 
-def test_a_cancel_lifting_or_carrying_keeps_the_cube_in_the_hand_and_a_new_fetch_goes_straight_to_the_place(robot):
-    rig = FetchRig.of(robot)
+@pytest.mark.parametrize("phase", [phase for phase, _, _ in BEFORE_THE_LIFT])
+def test_a_cancel_before_the_lift_stops_and_stands_and_the_cube_stays_on_its_table(trunk, phase):
+    """Walking to the cube, reaching for it, closing the fingers on it (then the hand holds it where it rests)."""
+    failure = trunk.branches[phase]
+    assert failure is None, f"the cancel in {phase}, in its branch of the fetch:\n{failure}"
+
+
+def test_a_cancel_lifting_or_carrying_keeps_the_cube_in_the_hand_and_a_new_fetch_goes_straight_to_the_place(trunk):
+    rig, skill, run = trunk.rig, trunk.skill, trunk.run
     sim = rig.sim
     body = sim.model.body(CUBE.name).id
-    skill, run = _start(rig, 1)
 
     def held_up(fetch: OneHandFetch, rise_m: float) -> None:
         forces = finger_forces(sim.model, sim.data, fetch.hand, body)
         assert holds(forces, fetch.hand, fetch.hand_config.hold_force_n), forces
         assert sim.data.xpos[body][2] > REST[2] + rise_m, "held up above the table"
 
-    # Lifting: the robot stands at the table holding the cube where the lift stopped.
-    _step_until(rig, run, _in_phase(rig, skill, "lift", 0.8), MAX_SIM_S)
+    # Lifting (the trunk stopped 0.8 s into the lift): the robot stands at the table holding the cube where the lift stopped.
     _cancel(rig, run, 1)
     assert run.outcome is not None and "canceled in stage LIFT" in run.outcome.message
     assert "holding the object" in run.outcome.message, run.outcome

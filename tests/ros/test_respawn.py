@@ -9,10 +9,11 @@ import signal
 import pytest
 from action_msgs.msg import GoalStatus
 from action_msgs.srv import CancelGoal
+from rcl_interfaces.srv import ListParameters
 
 from sim_interfaces.action import MoveArm, Walk
 from sim_ros.processes import ChildProcess, child_processes
-from sim_ros.session import WaitTimeout
+from sim_ros.session import RESPONSE_QOS, RosSession, WaitTimeout
 from tests.ros.actions import ready_client, result, send, wait_feedback
 from tests.ros.test_arm_server import move_goal
 
@@ -56,6 +57,24 @@ def test_a_killed_sim_is_reported_restarted_from_its_keyframe_and_served_again(c
         assert bringup.stop(timeout=30.0) == 0
 
 
+def bringup_has_matched(client: RosSession) -> None:
+    """Wait until bringup has matched every endpoint ``client`` has made so far.
+
+    DDS delivers a request only to the servers that had matched its writer when it was sent, and bringup can answer
+    only the requests it received. On a loaded machine bringup's side of discovery once learned of a new action
+    client's endpoints seconds after the server's side had: it kept none of that client's requests, and the client
+    of the killed server waited in vain. A request to bringup from a service client made now is announced after
+    every endpoint made before it: once bringup answers it, it has matched them all.
+    """
+    probe = client.in_executor(lambda: client.node.create_client(ListParameters, "/bringup/list_parameters",
+                                                                  qos_profile=RESPONSE_QOS), what="a new client")
+    try:
+        client.wait_for(probe.service_is_ready, READY_S, "bringup's parameter services")
+        client.until_answered(lambda: probe.call_async(ListParameters.Request()), READY_S, "bringup's parameter list")
+    finally:
+        client.in_executor(lambda: client.node.destroy_client(probe), what="destroying the client")
+
+
 KILLED_SERVERS = {  # robot, the server's executable, its action, a goal that runs for seconds, a short one
     "locomotion_server": ("g1", Walk, "/walk", Walk.Goal(distance=3.0, speed=0.3), Walk.Goal(distance=0.3, speed=0.3)),
     "arm_server": ("panda", MoveArm, "/move_arm", move_goal(0.5, 0.3, 0.3, scaling=0.05), move_goal(0.5, -0.3, 0.3)),
@@ -69,6 +88,7 @@ def test_a_client_of_a_killed_server_gets_a_result_and_the_restarted_server_serv
     bringup = ChildProcess(["bringup", "--robot", robot, "--respawn-delay", "2.0"], tmp_path)
     try:
         action = ready_client(client, action_type, name, timeout=READY_S)
+        bringup_has_matched(client)
         sent = send(client, action, long_goal)
         assert sent.handle.accepted
         wait_feedback(client, sent, lambda f: True, READY_S, f"{name} feedback")

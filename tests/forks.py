@@ -1,0 +1,53 @@
+"""Branches of one simulation: a check run in a forked copy of the test's process, from the state it has now.
+
+Tests that share a long prefix (the G1 walking to a table and reaching for an object) run it once and
+branch where they differ. ``os.fork`` copies the simulation, its controllers and their solvers exactly,
+nothing rebuilt or serialized, so a branch goes on as a fresh run to the same point would (the core is
+deterministic), and what it does never reaches the trunk. The branch's failure comes back as its traceback.
+The core's tests hold no ROS and no threads of their own, which is what makes the copy whole.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import traceback
+from collections.abc import Callable
+
+
+def in_fork(check: Callable[[], None]) -> str | None:
+    """Run ``check()`` in a forked copy of this process; None when it passed, else why not (its traceback).
+
+    The branch writes its output where the test's goes (pytest captures it); it ends with ``os._exit``, so
+    nothing of the test's own tear-down runs twice.
+    """
+    sys.stdout.flush()
+    sys.stderr.flush()
+    read_fd, write_fd = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the branch
+        code = 0
+        try:
+            os.close(read_fd)
+            try:
+                check()
+                report = b""
+            except BaseException:  # noqa: BLE001 - every failure of the branch is the test's failure
+                report = traceback.format_exc().encode()
+            with os.fdopen(write_fd, "wb") as pipe:
+                pipe.write(report)
+            sys.stdout.flush()
+            sys.stderr.flush()
+        except BaseException:  # noqa: BLE001 - the report could not be written: the exit code says so
+            code = 1
+        finally:
+            os._exit(code)
+    os.close(write_fd)
+    with os.fdopen(read_fd, "rb") as pipe:
+        report = pipe.read()
+    _, status = os.waitpid(pid, 0)
+    if report:
+        return report.decode(errors="replace")
+    if status != 0:
+        return f"the branch's process ended without a report (wait status {status})"
+    return None
