@@ -3,6 +3,7 @@ clients of a server that died get their results from bringup."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import time
@@ -21,7 +22,7 @@ from tests.ros.test_arm_server import move_goal
 pytestmark = pytest.mark.slow
 
 READY_S = 90.0
-RESENDS_PER_CLIENT = 3  # goals (10 s each) an action client sends to a restarted server before a new client is made
+RESENDS_PER_CLIENT = 3  # goals (10 s each) a client sends to a restarted server before one in a new participant does
 
 
 def child_pid(parent: int, executable: str) -> int | None:
@@ -59,14 +60,25 @@ def test_a_killed_sim_is_reported_restarted_from_its_keyframe_and_served_again(c
         assert bringup.stop(timeout=30.0) == 0
 
 
+@pytest.fixture
+def client():
+    """A client of each test's own (a DDS participant made after the earlier tests' kills).
+
+    Every test here kills a node with SIGKILL. Fast DDS's shared-memory port of a killed process stays broken for
+    the processes that had used it (eProsima/Fast-DDS#5469), and the next bring-up's processes take the freed ports:
+    a module-wide client once reached nothing of the next test's bringup.
+    """
+    with RosSession("test_client", use_sim_time=False) as session:
+        yield session
+
+
 def bringup_has_matched(client: RosSession) -> None:
     """Wait until bringup has matched every endpoint ``client`` has made so far.
 
     DDS delivers a request only to the servers that had matched its writer when it was sent, and bringup can answer
-    only the requests it received. On a loaded machine bringup's side of discovery once learned of a new action
-    client's endpoints seconds after the server's side had: it kept none of that client's requests, and the client
-    of the killed server waited in vain. A request to bringup from a service client made now is announced after
-    every endpoint made before it: once bringup answers it, it has matched them all.
+    only the requests it received: in CI bringup once kept none of a client's requests while the server had them
+    all (that client had talked to a node killed in an earlier test). A request to bringup from a service client
+    made now is announced after every endpoint made before it: once bringup answers it, it has matched them all.
     """
     probe = client.in_executor(lambda: client.node.create_client(ListParameters, "/bringup/list_parameters",
                                                                   qos_profile=RESPONSE_QOS), what="a new client")
@@ -88,6 +100,7 @@ def test_a_client_of_a_killed_server_gets_a_result_and_the_restarted_server_serv
     robot, action_type, name, long_goal, short_goal = KILLED_SERVERS[executable]
     # The restart waits 2 s: the cancel below must reach the keeper before a restarted server could answer it.
     bringup = ChildProcess(["bringup", "--robot", robot, "--respawn-delay", "2.0"], tmp_path)
+    stack = contextlib.ExitStack()
     try:
         action = ready_client(client, action_type, name, timeout=READY_S)
         bringup_has_matched(client)
@@ -113,25 +126,29 @@ def test_a_client_of_a_killed_server_gets_a_result_and_the_restarted_server_serv
         log = bringup.output()
         assert f"{executable} died with exit code -9" in log and f"waiting on {executable}'s goals" in log
 
+        sessions = [client]
         clients = [action]
 
         def next_goal_succeeds() -> bool:  # the restarted server may not be discovered yet: send again until taken
             try:
-                again = send(client, clients[-1], short_goal, timeout=10.0)
+                again = send(sessions[-1], clients[-1], short_goal, timeout=10.0)
             except WaitTimeout:
-                # On a loaded machine a restarted server once took none of an existing client's goals for 3 min (its
-                # side never matched that client's endpoints): a client made anew is discovered afresh, as in
-                # ready_client. Its first goals may go unanswered too while it is discovered: each is sent again.
+                # On a loaded machine a restarted server once took none of this client's goals for 3 min. The client's
+                # process had talked to the killed one, whose DDS port the restarted process may take, and Fast DDS's
+                # shared-memory port of a killed process stays broken for the processes that used it
+                # (eProsima/Fast-DDS#5469). A client in a new process-level participant (a new context) is not.
                 if len(clients) * 10.0 * RESENDS_PER_CLIENT < time.monotonic() - restarted_at:
-                    clients.append(action_client(client, action_type, name))
+                    sessions.append(stack.enter_context(RosSession(f"test_client_{len(sessions)}", use_sim_time=False)))
+                    clients.append(action_client(sessions[-1], action_type, name))
                 return False
             if not again.handle.accepted:
                 return False
-            final = result(client, again, timeout=120.0)
+            final = result(sessions[-1], again, timeout=120.0)
             assert final.status == GoalStatus.STATUS_SUCCEEDED, final.result.error_msg
             return True
 
         client.wait_for(next_goal_succeeds, 2 * READY_S, f"a goal to the restarted {executable} to succeed", poll=1.0)
         assert bringup.alive()
     finally:
+        stack.close()
         assert bringup.stop(timeout=30.0) == 0
