@@ -13,6 +13,7 @@ import os
 import sys
 import traceback
 from collections.abc import Callable
+from dataclasses import dataclass
 
 
 def in_fork(check: Callable[[], None]) -> str | None:
@@ -51,3 +52,25 @@ def in_fork(check: Callable[[], None]) -> str | None:
     if status != 0:
         return f"the branch's process ended without a report (wait status {status})"
     return None
+
+
+@dataclass
+class Branch:
+    """A check that branches off a run (:func:`in_fork`) at the first step where ``when()`` holds."""
+
+    when: Callable[[], bool]
+    check: Callable[[], None]
+    failure: str | None = None  # why the check failed in its branch (None: it passed, or has not run)
+    ran: bool = False
+
+    def verdict(self, what: str) -> None:
+        """Fail, naming ``what``, unless the branch ran and its check passed."""
+        assert self.ran, f"{what}: the run never came to its moment"
+        assert self.failure is None, f"{what}, in its branch of the run:\n{self.failure}"
+
+
+def fire_due(waiting: list[Branch]) -> None:
+    """Run (each in a fork) the branches of ``waiting`` that are due now, and take them off the list."""
+    for branch in [branch for branch in waiting if branch.when()]:
+        branch.failure, branch.ran = in_fork(branch.check), True
+        waiting.remove(branch)

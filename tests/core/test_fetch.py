@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import mujoco
@@ -20,7 +20,7 @@ from sim_bridge.fetch.bimanual import grip_forces, palms_of, tilt_of
 from sim_bridge.fetch.rig import FetchRig
 from sim_bridge.locomotion import LocomotionMode
 from sim_bridge.skills import SkillRun, SkillStatus
-from tests.forks import in_fork
+from tests.forks import Branch, fire_due
 
 PLACE = (1.02, -2.8)  # on the second table, 12 cm inside its edge facing the robot's side
 MAX_SIM_S = 150.0
@@ -42,26 +42,14 @@ def robot() -> robot_models.RobotSpec:
     return robot_models.load(robot_models.G1, "tables")
 
 
-@dataclass
-class Branch:
-    """A test that branches off the module's one fetch (a forked copy of the process, :func:`tests.forks.in_fork`)
-    at the first step where ``when()`` holds, and runs ``check()`` there."""
-
-    when: Callable[[], bool]
-    check: Callable[[], None]
-    failure: str | None = None
-    ran: bool = False
-
-
 def _run(rig: FetchRig, skill: FetchSkill, run: SkillRun, trace: Trace, until: float = MAX_SIM_S,
          branches: Iterable[Branch] = ()) -> None:
     sim = rig.sim
     waiting = list(branches)
     while run.status is SkillStatus.RUNNING and sim.time < until:
         sim.step(1)
-        for branch in [branch for branch in waiting if run.status is SkillStatus.RUNNING and branch.when()]:
-            branch.failure, branch.ran = in_fork(branch.check), True
-            waiting.remove(branch)
+        if run.status is SkillStatus.RUNNING:
+            fire_due(waiting)
         if run.status is SkillStatus.RUNNING:
             if not trace.stages or trace.stages[-1] != skill.milestone:
                 trace.stages.append(skill.milestone)
@@ -284,8 +272,7 @@ def _cancel_carrying(rig: FetchRig, skill: FetchSkill, run: SkillRun) -> None:
 
 
 def test_cancel_while_carrying_stops_and_stands_holding_the_box_and_a_new_fetch_carries_it_on(fetched):
-    branch = fetched[4]["canceled"]
-    assert branch.ran and branch.failure is None, f"the cancel while carrying, in its branch of the fetch:\n{branch.failure}"
+    fetched[4]["canceled"].verdict("the cancel while carrying")
 
 
 def _drop_it(rig: FetchRig, skill: FetchSkill, run: SkillRun) -> None:
@@ -305,5 +292,4 @@ def _drop_it(rig: FetchRig, skill: FetchSkill, run: SkillRun) -> None:
 
 
 def test_an_object_that_leaves_the_palms_while_carried_ends_the_fetch_as_dropped(fetched):
-    branch = fetched[4]["dropped"]
-    assert branch.ran and branch.failure is None, f"the drop while carrying, in its branch of the fetch:\n{branch.failure}"
+    fetched[4]["dropped"].verdict("the drop while carrying")
