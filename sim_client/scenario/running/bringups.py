@@ -6,8 +6,9 @@ parameters a run changed (``set_param`` steps) are set back to the values they h
 change at the end of that run, through its session (which has found their nodes: a new session took
 1.5-4 s to find a node's parameter services), and before the next run ``/sim/reset_simulation``
 (SCOPE_ALL) puts the scene back to its keyframe, ends the goals still running in ``/sim`` and restarts
-sim time, and with it the publication grid, at 0: the state of a bring-up just started paused. Each
-run has its own client session, so its recordings start empty. A bring-up is not reused after a run
+sim time, and with it the publication grid, at 0: the state of a bring-up just started paused. The
+runs on a bring-up share one client session and its clients (found by the nodes once); each run
+subscribes to its recordings anew, so they start empty. A bring-up is not reused after a run
 that ended in an error (a failed step, not a failed expectation), nor when it has exited: the next run
 starts its own.
 """
@@ -27,6 +28,7 @@ from rclpy.parameter import Parameter
 
 import robot_models
 from sim_client.scenario.model.schema import Scenario
+from sim_client.scenario.running.run_clients import RunClients
 from sim_client.scenario.running.sim_time import SERVICE_WALL_S, StepFailure
 from sim_ros.processes import ChildProcess
 from sim_ros.session import RosSession, WaitTimeout
@@ -101,6 +103,8 @@ class Bringup:
 
     key: BringupKey
     process: ChildProcess
+    session: RosSession  # the runs' client session: its nodes found once (a new one per run took 1-3.5 s)
+    clients: RunClients  # ... and its clients
     runs: int = 0
     trusted: bool = True  # False after a run that ended in an error: not reused
     parameters: ParameterKeeper = field(default_factory=ParameterKeeper)
@@ -162,7 +166,12 @@ class Bringup:
         return target
 
     def stop(self) -> None:
-        """Stop the nodes; their last output goes to the log of the last run (and to stderr after a crash)."""
+        """Close the runs' session, then stop the nodes; their last output goes to the log of the last run (and to
+        stderr after a crash)."""
+        try:
+            self.clients.close()
+        finally:
+            self.session.close()
         code = self.process.stop()
         if self._last_folder is not None:
             self.copy_log(self._last_folder)
@@ -199,11 +208,13 @@ class Bringups:
             self._stream.write(text + "\n")
             self._stream.flush()
 
-    def acquire(self, scenario: Scenario, rtf: float, session: RosSession) -> Bringup:
-        """The bring-up for a run of ``scenario`` at ``rtf``: the running one, reset, or a new one."""
+    def acquire(self, scenario: Scenario, rtf: float, namespace: str = "") -> Bringup:
+        """The bring-up for a run of ``scenario`` at ``rtf`` under ``namespace``: the running one, reset, or a new one
+        (with a client session of its own, which the runs on it share)."""
         key: BringupKey = (scenario.robot, scenario.scene, rtf)
         current = self.current
-        same = current is not None and (current.key[0], current.key[2]) == (scenario.robot, rtf)  # any scene: loaded
+        same = (current is not None and (current.key[0], current.key[2]) == (scenario.robot, rtf)  # any scene: loaded
+                and current.session.namespace == (f"/{namespace.strip('/')}" if namespace.strip("/") else ""))
         if current is not None and same and not current.trusted:
             self._say("the last run on the running bring-up ended in an error: starting a new one")
         elif current is not None and same and not current.process.alive():
@@ -211,7 +222,7 @@ class Bringups:
         elif current is not None and same:
             try:
                 was = current.scene
-                restored = current.prepare(session, scenario.scene)
+                restored = current.prepare(current.session, scenario.scene)
                 world = f"the {scenario.scene} scene loaded, " if scenario.scene != was else ""
                 self._say(f"reusing the bring-up of {scenario.robot}/{was} (run {current.runs + 1} on it): {world}reset, "
                           f"sim time 0{', set back: ' + ', '.join(restored) if restored else ''}")
@@ -221,12 +232,14 @@ class Bringups:
         self.stop()
         args = ["bringup", "--robot", scenario.robot, "--scene", scenario.scene, "--rtf", f"{rtf:g}", "--paused",
                 "--clock-rate", f"{CLOCK_RATE_HZ:g}"]
-        if session.namespace:
-            args += ["--namespace", session.namespace.strip("/")]
+        if namespace.strip("/"):
+            args += ["--namespace", namespace.strip("/")]
         self.started += 1
         log_dir = pathlib.Path(self._logs.name) / str(self.started)
         self._say(f"starting bring-up {self.started}: {' '.join(args)}")
-        self.current = Bringup(key, ChildProcess(args, log_dir))
+        process = ChildProcess(args, log_dir)
+        session = RosSession("scenario_runner", use_sim_time=True, namespace=namespace)
+        self.current = Bringup(key, process, session, RunClients(session))
         return self.current
 
     def stop(self) -> None:

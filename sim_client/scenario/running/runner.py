@@ -56,35 +56,39 @@ def run(scenario: Scenario, options: RunOptions = DEFAULT_OPTIONS, stream: TextI
             return run(scenario, options, stream, own)
     folder = run_folder(options.out, scenario.name)
     rtf = scenario.rtf if options.rtf is None else options.rtf
-    with RosSession("scenario_runner", use_sim_time=True, namespace=options.namespace) as session:
-        if bringups is None:
+    if bringups is None:
+        with RosSession("scenario_runner", use_sim_time=True, namespace=options.namespace) as session:
             run_ = ScenarioRun(scenario, session, options, folder, stream)
             result = run_.execute()
             _write_artifacts(run_, result, stream)
             return result
-        wall0 = time.monotonic()
-        bringup = bringups.acquire(scenario, rtf, session)
-        run_ = ScenarioRun(scenario, session, options, folder, stream, parameters=bringup.parameters)
-        reset_wall = time.monotonic() - wall0  # resetting a reused bring-up is part of the run's start-up
+    wall0 = time.monotonic()
+    bringup = bringups.acquire(scenario, rtf, options.namespace)
+    session = bringup.session  # shared by the runs on this bring-up
+    run_ = ScenarioRun(scenario, session, options, folder, stream, parameters=bringup.parameters, clients=bringup.clients)
+    reset_wall = time.monotonic() - wall0  # resetting a reused bring-up is part of the run's start-up
+    try:
         result = run_.execute()
-        result.startup_time += reset_wall
-        result.report["startup_wall_s"] = round(result.startup_time, 3)
-        bringup.runs += 1
-        bringup.trusted = not result.failures  # a run that ended in an error may leave what a reset does not mend
-        if bringup.trusted:
-            try:  # through this run's session, which has found the nodes it changed
-                bringup.parameters.restore(session)
-            except (StepFailure, WaitTimeout) as error:
-                bringup.trusted = False
-                stream.write(f"the parameters this run changed could not be set back ({error}): the next run "
-                             "starts a bring-up of its own\n")
-        log = bringup.copy_log(folder)
-        if not bringup.process.alive():
-            result.failures.append(f"bringup exited early with code {bringup.process.process.returncode}; see {log}")
-            result.passed = False
-            result.report["passed"] = False
-            result.report["failures"] = result.failures
-        _write_artifacts(run_, result, stream)
+    finally:
+        run_.close()
+    result.startup_time += reset_wall
+    result.report["startup_wall_s"] = round(result.startup_time, 3)
+    bringup.runs += 1
+    bringup.trusted = not result.failures  # a run that ended in an error may leave what a reset does not mend
+    if bringup.trusted:
+        try:  # through the bring-up's session, which has found the nodes this run changed
+            bringup.parameters.restore(session)
+        except (StepFailure, WaitTimeout) as error:
+            bringup.trusted = False
+            stream.write(f"the parameters this run changed could not be set back ({error}): the next run "
+                         "starts a bring-up of its own\n")
+    log = bringup.copy_log(folder)
+    if not bringup.process.alive():
+        result.failures.append(f"bringup exited early with code {bringup.process.process.returncode}; see {log}")
+        result.passed = False
+        result.report["passed"] = False
+        result.report["failures"] = result.failures
+    _write_artifacts(run_, result, stream)
     return result
 
 

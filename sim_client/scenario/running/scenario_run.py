@@ -33,11 +33,12 @@ from sim_client.scenario.running.bringups import ParameterKeeper
 from sim_client.scenario.running.options import RunOptions
 from sim_client.scenario.running.progress import Progress, feedback_summary
 from sim_client.scenario.running.report import RunResult, Verdict, build_report, judge
+from sim_client.scenario.running.run_clients import RunClients
 from sim_client.scenario.running.sim_time import SERVICE_WALL_S, STARTUP_WALL_S, SimTime, StepFailure, call_service
 from sim_interfaces.msg import LocomotionState, ObjectStates
-from sim_interfaces.srv import Push, Reset
+from sim_interfaces.srv import Push, Reset, Step as StepSrv
 from sim_ros.names import ODOM_TOPIC, STREAMS, TF_TOPIC
-from sim_ros.session import RESPONSE_QOS, RosSession, TopicRecorder, WaitTimeout
+from sim_ros.session import RosSession, TopicRecorder, WaitTimeout
 
 CHUNK_S = 0.02  # sim time advanced between checks of conditions on measures [s]
 # Sim time advanced at once when only goal ends (seen where they happen: /sim stops its step there) and
@@ -50,16 +51,19 @@ class ScenarioRun:
     """One run of one scenario against nodes reachable through ``session``."""
 
     def __init__(self, scenario: Scenario, session: RosSession, options: RunOptions, folder: pathlib.Path,
-                 stream: TextIO = sys.stdout, parameters: ParameterKeeper | None = None) -> None:
+                 stream: TextIO = sys.stdout, parameters: ParameterKeeper | None = None,
+                 clients: RunClients | None = None) -> None:
         self.scenario = scenario
         self.session = session
+        self.run_clients = clients if clients is not None else RunClients(session)  # shared by a bring-up's runs
         self.options = options
         self.folder = folder
         self.rtf = scenario.rtf if options.rtf is None else options.rtf
         self.lock_step = options.launch or self.rtf == 0.0
         self.progress = Progress(stream, options.quiet)
         self.goals: dict[str, GoalHandle] = {}
-        self.time = SimTime(session, self.lock_step, self.rtf, lambda: sum(1 for h in self.goals.values() if h.done))
+        self.time = SimTime(session, self.lock_step, self.rtf, lambda: sum(1 for h in self.goals.values() if h.done),
+                            self.run_clients.service(StepSrv, "sim/step"))
         # Measures read every sample: a reader's history as deep as the writer's, so that a burst of a
         # lock-stepped stride waiting behind a busy spin thread is not overwritten (with a depth of 10, a
         # loaded machine lost a stand's lowest /odom sample: its base_height_min differed run to run).
@@ -77,9 +81,9 @@ class ScenarioRun:
         self.streams = (f"{session.namespace}/clock", f"{session.namespace}/joint_states")  # full names, as recorded
         self._unwatched = tuple(f"{session.namespace}/{name}/{topic}" for name in cameras if name != self.camera_name
                                 for topic in ("image_raw", "camera_info"))
-        self._reset = session.node.create_client(Reset, "sim/reset", qos_profile=RESPONSE_QOS)
-        self._push = session.node.create_client(Push, "sim/push", qos_profile=RESPONSE_QOS)
-        self._cmd_vel = session.node.create_publisher(Twist, "cmd_vel", 10)
+        self._reset = self.run_clients.service(Reset, "sim/reset")
+        self._push = self.run_clients.service(Push, "sim/push")
+        self._cmd_vel = self.run_clients.publisher(Twist, "cmd_vel")
         self.clients: dict[str, SimActionClient] = {}
         self.goal_actions: dict[str, str] = {}
         self.cancel_triggers: dict[str, Trigger] = {}
@@ -108,7 +112,7 @@ class ScenarioRun:
         if self.mcap is not None:
             self.mcap.discover()
         for action in self.scenario.actions:
-            client = ACTION_CLIENTS[action](self.session)
+            client = self.run_clients.action(action)
             try:
                 client.wait_for_server(SERVICE_WALL_S)
             except Exception as error:  # noqa: BLE001 - any failure to reach a server ends the run as a StepFailure
@@ -362,6 +366,14 @@ class ScenarioRun:
             return condition.comparison.holds(condition.measure.evaluate(self))
         except KeyError:
             return False
+
+    def close(self) -> None:
+        """Stop this run's recordings (the session, shared by the next runs on the bring-up, goes on)."""
+        mine = [r for r in (self.odom, self.joints, self.objects, self.locomotion, self.camera_images, self.time.clock)
+                if r is not None]
+        for recorder in mine:
+            recorder.stop()
+        self.session.recorders[:] = [r for r in self.session.recorders if all(r is not m for m in mine)]
 
     # ----- the whole run ---------------------------------------------------------------
     def execute(self) -> RunResult:

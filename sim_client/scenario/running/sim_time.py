@@ -55,12 +55,14 @@ class SimTime:
             reports ended in a step.
     """
 
-    def __init__(self, session: RosSession, lock_step: bool, rtf: float, goals_done: Callable[[], int]) -> None:
+    def __init__(self, session: RosSession, lock_step: bool, rtf: float, goals_done: Callable[[], int],
+                 step_client: Any = None) -> None:
         self.session = session
         self.lock_step = lock_step
         self.rtf = rtf
-        self.clock = session.record(Clock, "clock", keep=10)
-        self._step = session.node.create_client(StepSrv, "sim/step", qos_profile=RESPONSE_QOS)
+        self.clock = session.record(Clock, "clock", keep=10)  # the run's own: a reset restarts sim time at 0
+        self._step = step_client if step_client is not None else session.node.create_client(
+            StepSrv, "sim/step", qos_profile=RESPONSE_QOS)
         self._step_ids = itertools.count(random.SystemRandom().getrandbits(48) + 1)  # this run's step ids (nonzero)
         self._goals_done = goals_done
         self.control_dt = 0.0  # [s] of sim time per /sim/step step, measured by calibrate()
