@@ -266,6 +266,14 @@ class RosSession:
         else:
             self.node.destroy_subscription(subscription)
 
+    def service_client(self, srv_type: Any, name: str) -> Any:
+        """This session's client of service ``name``, made on first use and kept: a client made anew must be
+        found by the server again before its first answer can come back."""
+        key = (srv_type, name)
+        if key not in self._service_clients:
+            self._service_clients[key] = self.node.create_client(srv_type, name, qos_profile=RESPONSE_QOS)
+        return self._service_clients[key]
+
     def call(self, srv_type: Any, name: str, request: Any, timeout: float = 10.0,
              resend_every_s: float | None = None) -> Any:
         """Call a service and return its response (waits for the service first).
@@ -281,10 +289,7 @@ class RosSession:
         """
         if resend_every_s is None and getattr(srv_type, "__name__", "") in SENT_AGAIN:
             resend_every_s = RESEND_S
-        key = (srv_type, name)
-        client = self._service_clients.get(key)
-        if client is None:
-            client = self._service_clients[key] = self.node.create_client(srv_type, name, qos_profile=RESPONSE_QOS)
+        client = self.service_client(srv_type, name)
         self.wait_for(client.service_is_ready, timeout, f"service {name}")
         if resend_every_s is None:
             return self.wait_future(client.call_async(request), timeout, f"response of {name}")

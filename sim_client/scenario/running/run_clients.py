@@ -11,11 +11,12 @@ from __future__ import annotations
 from typing import Any
 
 from sim_client.actions import ACTION_CLIENTS, SimActionClient
-from sim_ros.session import RESPONSE_QOS, RosSession
+from sim_ros.session import RosSession
 
 
 class RunClients:
-    """Service clients, publishers and action clients of one session, each made on first use and kept.
+    """Publishers and action clients of one session, each made on first use and kept (its service clients are
+    kept by the session itself: :meth:`sim_ros.session.RosSession.service_client`).
 
     Args:
         session: the session they belong to (closed by its owner; :meth:`close` first).
@@ -23,22 +24,15 @@ class RunClients:
 
     def __init__(self, session: RosSession) -> None:
         self.session = session
-        self._made: dict[tuple[str, Any, str], Any] = {}
+        self._publishers: dict[tuple[Any, str], Any] = {}
         self._actions: dict[str, SimActionClient] = {}
-
-    def service(self, srv_type: Any, name: str) -> Any:
-        """The client of service ``name`` (relative to the session's namespace)."""
-        key = ("service", srv_type, name)
-        if key not in self._made:
-            self._made[key] = self.session.node.create_client(srv_type, name, qos_profile=RESPONSE_QOS)
-        return self._made[key]
 
     def publisher(self, msg_type: Any, topic: str, depth: int = 10) -> Any:
         """The publisher of ``topic`` (relative to the session's namespace)."""
-        key = ("publisher", msg_type, topic)
-        if key not in self._made:
-            self._made[key] = self.session.node.create_publisher(msg_type, topic, depth)
-        return self._made[key]
+        key = (msg_type, topic)
+        if key not in self._publishers:
+            self._publishers[key] = self.session.node.create_publisher(msg_type, topic, depth)
+        return self._publishers[key]
 
     def action(self, action: str) -> SimActionClient:
         """The client of ``action`` (a scenario's action name: ``walk``, ``navigate`` ...); it probes its server

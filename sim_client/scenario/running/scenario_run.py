@@ -36,7 +36,7 @@ from sim_client.scenario.running.report import RunResult, Verdict, build_report,
 from sim_client.scenario.running.run_clients import RunClients
 from sim_client.scenario.running.sim_time import SERVICE_WALL_S, STARTUP_WALL_S, SimTime, StepFailure, call_service
 from sim_interfaces.msg import LocomotionState, ObjectStates
-from sim_interfaces.srv import Push, Reset, Step as StepSrv
+from sim_interfaces.srv import Push, Reset
 from sim_ros.names import ODOM_TOPIC, STREAMS, TF_TOPIC
 from sim_ros.session import RosSession, TopicRecorder, WaitTimeout
 
@@ -62,8 +62,7 @@ class ScenarioRun:
         self.lock_step = options.launch or self.rtf == 0.0
         self.progress = Progress(stream, options.quiet)
         self.goals: dict[str, GoalHandle] = {}
-        self.time = SimTime(session, self.lock_step, self.rtf, lambda: sum(1 for h in self.goals.values() if h.done),
-                            self.run_clients.service(StepSrv, "sim/step"))
+        self.time = SimTime(session, self.lock_step, self.rtf, lambda: sum(1 for h in self.goals.values() if h.done))
         # Measures read every sample: a reader's history as deep as the writer's, so that a burst of a
         # lock-stepped stride waiting behind a busy spin thread is not overwritten (with a depth of 10, a
         # loaded machine lost a stand's lowest /odom sample: its base_height_min differed run to run).
@@ -81,8 +80,8 @@ class ScenarioRun:
         self.streams = (f"{session.namespace}/clock", f"{session.namespace}/joint_states")  # full names, as recorded
         self._unwatched = tuple(f"{session.namespace}/{name}/{topic}" for name in cameras if name != self.camera_name
                                 for topic in ("image_raw", "camera_info"))
-        self._reset = self.run_clients.service(Reset, "sim/reset")
-        self._push = self.run_clients.service(Push, "sim/push")
+        self._reset = session.service_client(Reset, "sim/reset")
+        self._push = session.service_client(Push, "sim/push")
         self._cmd_vel = self.run_clients.publisher(Twist, "cmd_vel")
         self.clients: dict[str, SimActionClient] = {}
         self.goal_actions: dict[str, str] = {}

@@ -19,7 +19,7 @@ from rosgraph_msgs.msg import Clock
 
 from sim_client.scenario.model.series import stamp_s
 from sim_interfaces.srv import Step as StepSrv
-from sim_ros.session import RESPONSE_QOS, RosSession, WaitTimeout
+from sim_ros.session import RosSession, WaitTimeout
 
 STARTUP_WALL_S = 90.0
 SERVICE_WALL_S = 30.0
@@ -55,14 +55,12 @@ class SimTime:
             reports ended in a step.
     """
 
-    def __init__(self, session: RosSession, lock_step: bool, rtf: float, goals_done: Callable[[], int],
-                 step_client: Any = None) -> None:
+    def __init__(self, session: RosSession, lock_step: bool, rtf: float, goals_done: Callable[[], int]) -> None:
         self.session = session
         self.lock_step = lock_step
         self.rtf = rtf
         self.clock = session.record(Clock, "clock", keep=10)  # the run's own: a reset restarts sim time at 0
-        self._step = step_client if step_client is not None else session.node.create_client(
-            StepSrv, "sim/step", qos_profile=RESPONSE_QOS)
+        self._step = session.service_client(StepSrv, "sim/step")  # the session's (shared by a bring-up's runs)
         self._step_ids = itertools.count(random.SystemRandom().getrandbits(48) + 1)  # this run's step ids (nonzero)
         self._goals_done = goals_done
         self.control_dt = 0.0  # [s] of sim time per /sim/step step, measured by calibrate()
