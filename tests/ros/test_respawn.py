@@ -147,7 +147,10 @@ def test_a_client_of_a_killed_server_gets_a_result_and_the_restarted_server_serv
             assert final.status == GoalStatus.STATUS_SUCCEEDED, final.result.error_msg
             return True
 
-        client.wait_for(next_goal_succeeds, 2 * READY_S, f"a goal to the restarted {executable} to succeed", poll=1.0)
+        try:
+            client.wait_for(next_goal_succeeds, 2 * READY_S, f"a goal to the restarted {executable} to succeed", poll=1.0)
+        except WaitTimeout as timeout:
+            raise AssertionError(f"{timeout}; bringup's last output:\n{bringup.output()[-6000:]}") from timeout
         assert bringup.alive()
     finally:
         stack.close()
