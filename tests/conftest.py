@@ -22,8 +22,10 @@ os.environ.setdefault("SIM_TEST_RUN", uuid.uuid4().hex[:12])  # set by the contr
 WORKER_TAG_VARIABLE = "SIM_TEST_WORKER_TAG"
 os.environ[WORKER_TAG_VARIABLE] = f"{os.environ['SIM_TEST_RUN']}/{os.environ.get('PYTEST_XDIST_WORKER', 'main')}"
 
-import faulthandler  # noqa: E402  (after the environment above, which must come first)
+import collections  # noqa: E402  (after the environment above, which must come first)
+import faulthandler  # noqa: E402
 import pathlib  # noqa: E402
+import resource  # noqa: E402
 import shutil  # noqa: E402
 import tempfile  # noqa: E402
 
@@ -178,9 +180,54 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
         stop_tagged_processes(f"{os.environ['SIM_TEST_RUN']}/")
 
 
+CPU_PROPERTY = "cpu_s"  # a test phase's CPU [s]: its worker's and the processes it started and waited for
+CPU_BY_FILE: collections.Counter[str] = collections.Counter()  # the controller's: CPU [s] of each test file
+
+
+def _cpu_s() -> float:
+    """CPU [s] of this process and of its children that ended and were waited for (a bring-up stopped by a fixture)."""
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_setup(item: pytest.Item):
+    start = _cpu_s()
+    yield
+    item.user_properties.append((CPU_PROPERTY, _cpu_s() - start))
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_call(item: pytest.Item):
+    start = _cpu_s()
+    yield
+    item.user_properties.append((CPU_PROPERTY, _cpu_s() - start))
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_teardown(item: pytest.Item):
+    start = _cpu_s()  # a module's last test also stops the module's bring-up: its CPU counts for the file
+    yield
+    item.user_properties.append((CPU_PROPERTY, _cpu_s() - start))
+
+
+def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    """The controller adds up each file's CPU from its tests' tear-down reports (which carry all three phases)."""
+    if report.when == "teardown":
+        CPU_BY_FILE[report.nodeid.split("::", 1)[0]] += sum(v for k, v in report.user_properties if k == CPU_PROPERTY)
+
+
 def pytest_terminal_summary(terminalreporter, exitstatus: int, config: pytest.Config) -> None:
-    """The stacks of every test the watchdog ended (the controller's summary), then the folder is removed."""
-    if "PYTEST_XDIST_WORKER" in os.environ or not os.environ.get(HANG_DIR_VARIABLE):
+    """The files that took the most CPU, then the stacks of every test the watchdog ended (the controller's summary);
+    then that folder is removed."""
+    if "PYTEST_XDIST_WORKER" in os.environ:
+        return
+    if CPU_BY_FILE:
+        total = sum(CPU_BY_FILE.values())
+        terminalreporter.section(f"CPU by test file: {total:.0f} s in all (the tests' processes and those they started)")
+        for path, cpu_s in CPU_BY_FILE.most_common(10):
+            terminalreporter.write_line(f"{cpu_s:8.1f} s  {100 * cpu_s / total:4.1f} %  {path}")
+    if not os.environ.get(HANG_DIR_VARIABLE):
         return
     folder = pathlib.Path(os.environ[HANG_DIR_VARIABLE])
     for path in sorted(folder.glob("*.txt")):
