@@ -6,6 +6,7 @@ PY := $(VENV)/bin/python
 STAMPS := $(VENV)/.stamps
 INTERFACE_FILES := $(shell find interfaces -type f)
 export MUJOCO_GL ?= egl
+export OPENBLAS_NUM_THREADS ?= 1
 
 .PHONY: setup lint demo test test-fast bench bench-sim bench-walk bench-arm bench-nav bench-idle bench-scenario bench-response bench-locomotion bench-sensors bench-soak bench-camera bench-fetch clean
 

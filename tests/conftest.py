@@ -17,6 +17,9 @@ _worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0").removeprefix("gw")
 os.environ["ROS_DOMAIN_ID"] = str(1 + (int(os.environ["SIM_TEST_DOMAIN_ID"]) - 1 + int(_worker or 0)) % 101)
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("MUJOCO_GL", "egl")
+# One OpenBLAS thread in the tests' processes (numpy loads before the project's packages in a test module); the
+# processes they start inherit it. See robot_models/__init__.py for what two threads cost on a busy machine.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 # Every process a worker starts inherits this tag: the processes of a worker that died are found by it and stopped.
 os.environ.setdefault("SIM_TEST_RUN", uuid.uuid4().hex[:12])  # set by the controller, inherited by its workers
 WORKER_TAG_VARIABLE = "SIM_TEST_WORKER_TAG"
