@@ -183,8 +183,9 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
         stop_tagged_processes(f"{os.environ['SIM_TEST_RUN']}/")
 
 
-CPU_PROPERTY = "cpu_s"  # a test phase's CPU [s]: its worker's and the processes it started and waited for
+CPU_PROPERTY = "cpu_s"  # a test's CPU [s], set-up to tear-down: its worker's and the processes it started and waited for
 CPU_BY_FILE: collections.Counter[str] = collections.Counter()  # the controller's: CPU [s] of each test file
+_CPU_AT_SETUP = pytest.StashKey[float]()
 
 
 def _cpu_s() -> float:
@@ -193,29 +194,22 @@ def _cpu_s() -> float:
     return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
 
 
-@pytest.hookimpl(hookwrapper=True)
-def pytest_runtest_setup(item: pytest.Item):
-    start = _cpu_s()
-    yield
-    item.user_properties.append((CPU_PROPERTY, _cpu_s() - start))
+@pytest.hookimpl(tryfirst=True)  # before the test's fixtures are set up
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    item.stash[_CPU_AT_SETUP] = _cpu_s()
 
 
 @pytest.hookimpl(hookwrapper=True)
-def pytest_runtest_call(item: pytest.Item):
-    start = _cpu_s()
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]):
+    """The tear-down report carries the test's CPU (a module's last test also stops the module's bring-up: its CPU
+    counts for the file); added before the report is made, which copies the item's properties."""
+    if call.when == "teardown" and _CPU_AT_SETUP in item.stash:
+        item.user_properties.append((CPU_PROPERTY, _cpu_s() - item.stash[_CPU_AT_SETUP]))
     yield
-    item.user_properties.append((CPU_PROPERTY, _cpu_s() - start))
-
-
-@pytest.hookimpl(hookwrapper=True)
-def pytest_runtest_teardown(item: pytest.Item):
-    start = _cpu_s()  # a module's last test also stops the module's bring-up: its CPU counts for the file
-    yield
-    item.user_properties.append((CPU_PROPERTY, _cpu_s() - start))
 
 
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:
-    """The controller adds up each file's CPU from its tests' tear-down reports (which carry all three phases)."""
+    """The controller adds up each file's CPU from its tests' tear-down reports."""
     if report.when == "teardown":
         CPU_BY_FILE[report.nodeid.split("::", 1)[0]] += sum(v for k, v in report.user_properties if k == CPU_PROPERTY)
 
