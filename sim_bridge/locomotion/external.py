@@ -49,6 +49,8 @@ class ExternalContacts:
         if n == 0:
             return None
         geoms = data.contact.geom[:n]
+        if not self._measured[geoms].any():  # the common case: only the soles (and the scene) touch anything
+            return None
         first, second = geoms[:, 0], geoms[:, 1]
         on_second = self._measured[second] & self._movable[first]  # the robot is geom2: the force is on it
         on_first = self._measured[first] & self._movable[second]

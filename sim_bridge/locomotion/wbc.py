@@ -44,7 +44,6 @@ from sim_bridge.locomotion.wbc_layout import (
     FootLayout,
     JointLayout,
     as_index,
-    block,
     clip,
     friction_pyramids,
     robot_mass,
@@ -146,12 +145,12 @@ class WholeBodyQP:
     def _index_views(self) -> None:
         """Index views of the joint addresses (slices where they are consecutive, as on the G1)."""
         joints = self.joints
-        self._base_index = as_index(joints.base_dofs)
         self._motor_dof_index = as_index(joints.motor_dofs)
         self._motor_qpos_index = as_index(joints.motor_qpos)
         self._servo_dof_index = as_index(joints.servo_dofs)
         self._servo_qpos_index = as_index(joints.servo_qpos)
         self._servo_actuator_index = as_index(joints.servo_actuators)
+        self._eliminated = joints.eliminated  # base then servo dofs: the rows of the elimination
 
     def _allocate_kinematics(self) -> None:
         """Buffers of :meth:`_kinematics` and the motion tasks.
@@ -172,6 +171,7 @@ class WholeBodyQP:
         self._motor_mass = self._rows[2 * N_TASK :]
         self._tasks = MotionTasks((self.pelvis, self.torso), self.feet.sole_sites)
         self._mass_ee_flat = (eliminated[:, None] * nv + eliminated[None, :]).ravel()  # M[E][:, E], flattened
+        self._mass_em_flat = (eliminated[:, None] * nv + self.joints.motor_dofs[None, :]).ravel()  # M[E][:, m]
 
     def _allocate_elimination(self) -> None:
         """Elimination: [K_f | K_m | k0] = M_EE^-1 [J_c,E^T | -M_Em | tau_E - h_E]; qacc = Q z + q0."""
@@ -182,9 +182,7 @@ class WholeBodyQP:
         self._q_map = np.zeros((self.nv, nz))
         self._q_map[self.joints.motor_dofs, FORCE_BLOCK + np.arange(self.nm)] = 1.0
         self._q_offset = np.zeros(self.nv)
-        n_base = len(self.joints.base_dofs)
-        self._base_rows = slice(0, n_base)  # rows of K (and of the elimination) that belong to the base
-        self._servo_rows = slice(n_base, ne)
+        self._servo_rows = slice(len(self.joints.base_dofs), ne)  # rows of K (and of the elimination) of the servos
 
     def _allocate_costs(self) -> None:
         """Cost rows on z: CoM (total force / mass), tasks, posture (qacc_m), regularisation of qacc_E."""
@@ -279,26 +277,23 @@ class WholeBodyQP:
             bias -= external
         contact_jac = self._contact_jac
         self._tasks.fill(data, self._rows[: 2 * N_TASK] @ data.qvel, targets.heading, targets.swing, self._task_weight)
-        motor, base, servo = self._motor_dof_index, self._base_index, self._servo_dof_index
+        motor = self._motor_dof_index
         self._motor_mass[:] = mass[motor]
 
-        # Eliminate the equality rows: qacc_E = K z + k0, rows of K ordered base then servo.
-        elim, base_rows, servo_rows = self._elim_rhs, self._base_rows, self._servo_rows
-        elim[base_rows, :nf] = contact_jac[:, base].T
-        elim[servo_rows, :nf] = contact_jac[:, servo].T
-        np.negative(block(mass, base, motor), out=elim[base_rows, nf:nz])
-        np.negative(block(mass, servo, motor), out=elim[servo_rows, nf:nz])
-        np.negative(bias[base], out=elim[base_rows, nz])
-        np.subtract(self._servo_torques(data), bias[servo], out=elim[servo_rows, nz])
+        # Eliminate the equality rows: qacc_E = K z + k0, rows of K ordered base then servo (E).
+        # Each block is gathered by one precomputed index (tau_E - h_E as -h_E, then + tau on the servo rows).
+        elim, eliminated = self._elim_rhs, self._eliminated
+        elim[:, :nf] = contact_jac.take(eliminated, axis=1).T
+        np.negative(mass.take(self._mass_em_flat).reshape(ne, self.nm), out=elim[:, nf:nz])
+        np.negative(bias.take(eliminated), out=elim[:, nz])
+        elim[self._servo_rows, nz] += self._servo_torques(data)
         self._mass_ee[:] = mass.take(self._mass_ee_flat).reshape(ne, ne)
         _, solved, info = self._dposv(self._mass_ee, elim, overwrite_a=1, overwrite_b=1)
         if info != 0:  # M_EE not positive definite: only with a broken state (e.g. NaN)
             return self._fallback(FACTORISATION_FAILED, bias)
         q_map, q_offset = self._q_map, self._q_offset
-        q_map[base] = solved[base_rows, :nz]
-        q_map[servo] = solved[servo_rows, :nz]
-        q_offset[base] = solved[base_rows, nz]
-        q_offset[servo] = solved[servo_rows, nz]
+        q_map[eliminated] = solved[:, :nz]
+        q_offset[eliminated] = solved[:, nz]
 
         # Task and torque rows on z: [J_task; M_m] qacc = [J_task; M_m] (Q z + q0).
         task_and_motor = self._rows[18:]

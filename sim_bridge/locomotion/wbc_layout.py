@@ -41,13 +41,6 @@ def as_index(indices: np.ndarray) -> slice | np.ndarray:
     return indices
 
 
-def block(matrix: np.ndarray, rows: slice | np.ndarray, columns: slice | np.ndarray) -> np.ndarray:
-    """``matrix[rows][:, columns]`` (a view when both are slices)."""
-    if isinstance(rows, slice) and isinstance(columns, slice):
-        return matrix[rows, columns]
-    return matrix[np.ix_(np.arange(matrix.shape[0])[rows], np.arange(matrix.shape[1])[columns])]
-
-
 def clip(values: np.ndarray, limits: np.ndarray) -> np.ndarray:
     """``values`` clipped in place to ``limits[:, 0]`` .. ``limits[:, 1]``."""
     np.maximum(values, limits[:, 0], out=values)
