@@ -1,7 +1,7 @@
 """All-in-one bringup: the sim node and every server that exists for the robot, as a launch file would.
 
-``bringup --robot g1|panda [--scene course|tables] [--rtf X] [--paused] [--clock-rate HZ]``. Each node runs in its
-own process (so the physics thread never waits for a server's Python), with the same names and
+``bringup --robot g1|panda [--scene course|tables] [--rtf X] [--paused] [--clock-rate HZ] [--joint-state-rate HZ]``.
+Each node runs in its own process (so the physics thread never waits for a server's Python), with the same names and
 interfaces as when started one by one. Ctrl-C (or SIGTERM) stops them all.
 
 A node that dies (a non-zero exit) is reported (which, its exit code, its last lines of output) and started again, as
@@ -29,6 +29,7 @@ from sim_ros.names import MAX_STREAM_RATE_HZ
 from sim_ros.processes import ChildProcess
 
 MIN_CLOCK_RATE_HZ = 10.0  # /sim's clock_rate range: this to sim_ros.names.MAX_STREAM_RATE_HZ
+MIN_JOINT_STATE_RATE_HZ = 1.0  # /sim's joint_state_rate range: this to sim_ros.names.MAX_STREAM_RATE_HZ
 NAMESPACE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*")
 
 
@@ -40,6 +41,8 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--paused", action="store_true", help="start with the physics paused")
     parser.add_argument("--clock-rate", type=float, default=None,
                         help="/sim's /clock rate [Hz of sim time] (default: its clock_rate parameter's, 100)")
+    parser.add_argument("--joint-state-rate", type=float, default=None,
+                        help="/sim's /joint_states rate [Hz of sim time] (default: its joint_state_rate parameter's, 200)")
     parser.add_argument("--no-respawn", dest="respawn", action="store_false",
                         help="a node that dies stops the others (default: it is started again)")
     parser.add_argument("--respawn-limit", type=int, default=5, help="restarts allowed per node (default 5)")
@@ -61,6 +64,8 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         parser.error("--foxglove-port must be in [0, 65535]")
     if options.clock_rate is not None and not MIN_CLOCK_RATE_HZ <= options.clock_rate <= MAX_STREAM_RATE_HZ:
         parser.error(f"--clock-rate must be in [{MIN_CLOCK_RATE_HZ:g}, {MAX_STREAM_RATE_HZ:g}] Hz of sim time")
+    if options.joint_state_rate is not None and not MIN_JOINT_STATE_RATE_HZ <= options.joint_state_rate <= MAX_STREAM_RATE_HZ:
+        parser.error(f"--joint-state-rate must be in [{MIN_JOINT_STATE_RATE_HZ:g}, {MAX_STREAM_RATE_HZ:g}] Hz of sim time")
     if options.respawn_limit < 0 or not 0.0 <= options.respawn_delay <= 60.0:
         parser.error("--respawn-limit must be >= 0 and --respawn-delay in [0, 60] s")
     return options
@@ -73,6 +78,8 @@ def commands_for(options: argparse.Namespace, ros_args: list[str]) -> list[list[
            "-p", f"start_paused:={str(bool(options.paused)).lower()}", *scene]
     if options.clock_rate is not None:
         sim += ["-p", f"clock_rate:={float(options.clock_rate)}"]
+    if options.joint_state_rate is not None:
+        sim += ["-p", f"joint_state_rate:={float(options.joint_state_rate)}"]
     servers = [["arm_server", "--ros-args", "-p", f"robot:={options.robot}", *scene]]
     if robot_models.walks(options.robot):
         servers.append(["locomotion_server", "--ros-args", "-p", f"robot:={options.robot}", *scene])

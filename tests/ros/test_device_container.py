@@ -23,6 +23,15 @@ def test_a_bringup_runs_its_devices_in_one_process(robot):
     assert not {"power_node", "hand_sensors", "camera_node", "head_node"} & set(executables), executables
 
 
+def test_a_bringup_passes_its_stream_rates_to_sim_and_refuses_a_rate_out_of_range(capsys):
+    sim = commands_for(parse_args(["--robot", "g1", "--clock-rate", "50", "--joint-state-rate", "100"]), [])[0]
+    assert sim[0] == "sim_node" and "clock_rate:=50.0" in sim and "joint_state_rate:=100.0" in sim, sim
+    assert not any("joint_state_rate" in arg for arg in commands_for(parse_args(["--robot", "g1"]), [])[0])
+    with pytest.raises(SystemExit):
+        parse_args(["--joint-state-rate", "0.5"])
+    assert "--joint-state-rate must be in [1, 500] Hz of sim time" in capsys.readouterr().err
+
+
 def test_the_g1_devices_serve_their_own_parameters_from_one_process(client):
     with running([str(BIN / "device_nodes"), "--ros-args", "-p", "robot:=g1",
                   "-p", "power:battery_low_threshold:=25.0"]) as process:

@@ -12,7 +12,7 @@ import pytest
 
 from sim_client.scenario.model import schema
 from sim_client.scenario.outputs import recording
-from sim_client.scenario.running.bringups import CLOCK_RATE_HZ, Bringups
+from sim_client.scenario.running.bringups import CLOCK_RATE_HZ, JOINT_STATE_RATE_HZ, Bringups
 from sim_client.scenario.running.options import RunOptions
 from sim_client.scenario.running.runner import run
 from sim_ros.processes import BIN
@@ -73,8 +73,8 @@ def test_a_sim_only_scenario_runs_headless_with_a_json_report_and_an_mcap(tmp_pa
     counts = recording.read_mcap_topics(pathlib.Path(report["artifacts"]["mcap"]))
     for topic in ("/clock", "/joint_states", "/odom", "/objects", "/tf", "/robot_description"):
         assert counts.get(topic, 0) > 0, f"{topic} missing from the MCAP: {counts}"  # the robot plays back in 3D
-    # 2 s of sim time at the scenario bring-up's /clock rate and the sim's default 200 Hz joint states
-    assert counts["/clock"] >= 1.9 * CLOCK_RATE_HZ and counts["/joint_states"] >= 380
+    # 2 s of sim time at the scenario bring-up's /clock and /joint_states rates
+    assert counts["/clock"] >= 1.9 * CLOCK_RATE_HZ and counts["/joint_states"] >= 1.9 * JOINT_STATE_RATE_HZ
     assert "/scene_camera/image_raw" not in counts, "a run not asked for the camera leaves it unwatched (unrendered)"
 
 
