@@ -39,9 +39,14 @@ SCRIPT = textwrap.dedent("""
 """)
 
 
-def test_a_callback_that_raises_is_logged_and_the_events_executor_spins_on():
-    done = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True, timeout=120,
+def _run(script: str) -> subprocess.CompletedProcess[str]:
+    """Run ``script`` in a Python process of its own, from the project's root."""
+    return subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120,
                           env=dict(os.environ), cwd=os.path.dirname(os.path.dirname(os.path.dirname(__file__))))
+
+
+def test_a_callback_that_raises_is_logged_and_the_events_executor_spins_on():
+    done = _run(SCRIPT)
     assert done.returncode == 0, done.stdout + done.stderr
     assert "timer calls: 3" in done.stdout, done.stdout + done.stderr
     assert "a callback raised; the node keeps serving" in done.stderr and "a malformed request" in done.stderr, done.stderr
@@ -88,8 +93,7 @@ SERVER_SCRIPT = textwrap.dedent("""
 
 
 def test_the_server_executor_follows_clock_in_its_own_thread_and_runs_other_callbacks_on_its_pool():
-    done = subprocess.run([sys.executable, "-c", SERVER_SCRIPT], capture_output=True, text=True, timeout=120,
-                          env=dict(os.environ), cwd=os.path.dirname(os.path.dirname(os.path.dirname(__file__))))
+    done = _run(SERVER_SCRIPT)
     assert done.returncode == 0, done.stdout + done.stderr
     lines = done.stdout.splitlines()
     assert int(lines[0].split(":")[1]) >= 5, done.stdout  # the node's sim-time clock followed /clock
