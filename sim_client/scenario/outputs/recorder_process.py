@@ -11,7 +11,8 @@ The runner holds a :class:`RecordingProcess`; the child (``python -m sim_client.
 runs :class:`~sim_client.scenario.outputs.recording.McapRecorder` on a session of its own and answers one JSON line
 per command read from its stdin:
 
-- ``status``: ``{"counts": {topic: n}, "latest_stamp_s": {topic: s}, "skipped": {topic: why}}``;
+- ``status``: ``{"counts": {topic: n}, "latest_stamp_s": {topic: s}, "skipped": {topic: why}, "matched": {topic: n}}``
+  (``matched``: the publishers each topic's subscription has matched);
 - ``discover``: looks for new topics now (it also looks every ``DISCOVER_EVERY_S`` by itself); no answer;
 - ``close``: finishes the file, answers its status and exits. End of input (the runner is gone) closes it too.
 """
@@ -43,6 +44,7 @@ class RecordingStatus:
     counts: dict[str, int] = field(default_factory=dict)
     latest_stamp_s: dict[str, float] = field(default_factory=dict)
     skipped: dict[str, str] = field(default_factory=dict)
+    matched: dict[str, int] = field(default_factory=dict)  # topic -> publishers its subscription has matched
 
 
 class RecordingError(RuntimeError):
@@ -135,7 +137,7 @@ class RecordingProcess:
                 self._buffer += chunk
         line, _, self._buffer = self._buffer.partition(b"\n")
         answer = json.loads(line)
-        return RecordingStatus(answer["counts"], answer["latest_stamp_s"], answer["skipped"])
+        return RecordingStatus(answer["counts"], answer["latest_stamp_s"], answer["skipped"], answer["matched"])
 
 
 # ----- the child -------------------------------------------------------------------------
@@ -204,7 +206,7 @@ class _Child:
     def _answer(self) -> None:
         recorder = self.recorder
         status = {"counts": dict(recorder.counts), "latest_stamp_s": dict(recorder.latest_stamp_s),
-                  "skipped": dict(recorder.skipped)}
+                  "skipped": dict(recorder.skipped), "matched": recorder.matched()}
         sys.stdout.buffer.write((json.dumps(status) + "\n").encode())
         sys.stdout.buffer.flush()
 

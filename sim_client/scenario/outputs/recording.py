@@ -33,7 +33,7 @@ class McapRecorder:
         self._lock = threading.Lock()
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
-        self._subscriptions: list[Any] = []
+        self._subscriptions: dict[str, Any] = {}  # topic -> its subscription
         self._sequence = 0
         self._exclude = exclude
         self._prefix = f"{namespace}/" if namespace else ""  # a namespaced run records its own bring-up's topics only
@@ -66,9 +66,13 @@ class McapRecorder:
                 self.counts[topic] = 0
                 if _starts_with_stamp(msg_type):
                     self._stamped.add(topic)
-            self._subscriptions.append(node.create_subscription(
+            self._subscriptions[topic] = node.create_subscription(
                 msg_type, topic, lambda data, topic=topic: self._on_message(topic, data), qos, raw=True,
-                event_callbacks=quiet_events()))
+                event_callbacks=quiet_events())
+
+    def matched(self) -> dict[str, int]:
+        """The publishers each recorded topic's subscription has matched, by topic."""
+        return {topic: subscription.get_publisher_count() for topic, subscription in self._subscriptions.items()}
 
     def _on_message(self, topic: str, data: bytes) -> None:
         now = self.session.node.get_clock().now().nanoseconds
@@ -83,8 +87,8 @@ class McapRecorder:
                 self.latest_stamp_s[topic] = _cdr_leading_stamp_s(data)
 
     def close(self) -> None:
-        subscriptions, self._subscriptions = self._subscriptions, []
-        for subscription in subscriptions:
+        subscriptions, self._subscriptions = self._subscriptions, {}
+        for subscription in subscriptions.values():
             self.session.destroy_subscription(subscription)
         with self._lock:
             if self._closed:

@@ -117,9 +117,12 @@ class ScenarioRun:
             except Exception as error:  # noqa: BLE001 - any failure to reach a server ends the run as a StepFailure
                 raise StepFailure(f"{error}") from None
             self.clients[action] = client
-        self.time.calibrate()
         if self.lock_step or self.mcap is not None:
             self._wait_recordings_flow()
+        # After the recordings flow: a watched camera renders its first frame in these steps, when the recorder has
+        # matched both its topics (a frame rendered before, in a parallel test run, was recorded without its
+        # camera_info).
+        self.time.calibrate()
         self.reset(None)
         self.marks["start"] = self.now()
         if self.mcap is not None:
@@ -141,19 +144,24 @@ class ScenarioRun:
         namespace = self.session.namespace
         recorded = (*self.streams, *(topic for topic in (f"{namespace}/{ODOM_TOPIC}", f"{namespace}/{TF_TOPIC}")
                                      if self.mcap is not None and self.session.node.count_publishers(topic) > 0))
+        # The watched camera publishes only when stepped: its two topics matched by the recorder's subscriptions.
+        camera = tuple(f"{namespace}/{self.camera_name}/{topic}" for topic in ("image_raw", "camera_info")
+                       if self.mcap is not None and self.camera_name)
 
         def flowing() -> bool:
             if not (self.time.clock.count > 0 and self.joints.count > 0 and self.odom.count > 0):
                 return False
             if self.mcap is None:
                 return True
-            counts = self.mcap.status().counts
-            return all(counts.get(t, 0) > 0 for t in recorded)
+            status = self.mcap.status()
+            return all(status.counts.get(t, 0) > 0 for t in recorded) and all(status.matched.get(t, 0) > 0 for t in camera)
 
         deadline = time.monotonic() + STARTUP_WALL_S
         while not flowing():
             if time.monotonic() > deadline:
-                raise StepFailure("no /clock, /joint_states or /odom reached the runner while the paused sim republished")
+                raise StepFailure("no /clock, /joint_states or /odom reached the runner while the paused sim republished"
+                                  if self.mcap is None else "the runner or the recorder did not receive /sim's streams "
+                                  f"({', '.join((*recorded, *camera))}) while the paused sim republished")
             self.reset(None)
             with contextlib.suppress(WaitTimeout):
                 self.session.wait_for(flowing, 0.2, "the recordings to receive the sim's streams")
