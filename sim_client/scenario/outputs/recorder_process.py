@@ -150,7 +150,7 @@ class _Child:
     ~7000 messages, on a machine whose other core steps /sim). Commands are read by a steady-clock timer of the same
     executor, so subscriptions are made and destroyed on the thread that spins them."""
 
-    def __init__(self, out: pathlib.Path, namespace: str, exclude: tuple[str, ...]) -> None:
+    def __init__(self, out: pathlib.Path, namespace: str, exclude: tuple[str, ...], answers: Any) -> None:
         import rclpy
         from rclpy.clock import Clock, ClockType
         from rclpy.experimental import EventsExecutor
@@ -168,6 +168,7 @@ class _Child:
         self.executor.add_node(self.node)
         self.recorder = McapRecorder(self, out, exclude=exclude, namespace=self.namespace)
         self.done = False
+        self._answers = answers  # the runner reads one JSON line per answer here
         self._line = b""
         self._last_discover = 0.0
         self.node.create_timer(POLL_S, self._poll, clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -207,8 +208,8 @@ class _Child:
         recorder = self.recorder
         status = {"counts": dict(recorder.counts), "latest_stamp_s": dict(recorder.latest_stamp_s),
                   "skipped": dict(recorder.skipped), "matched": recorder.matched()}
-        sys.stdout.buffer.write((json.dumps(status) + "\n").encode())
-        sys.stdout.buffer.flush()
+        self._answers.write((json.dumps(status) + "\n").encode())
+        self._answers.flush()
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -218,9 +219,14 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--namespace", default="")
     parser.add_argument("--exclude", action="append", default=[])
     options = parser.parse_args(argv)
+    # The answers keep stdout's pipe to themselves: what else writes to file descriptor 1 goes to the log instead (Fast
+    # DDS prints its errors there, e.g. "Failed init_port ... open_and_lock_file failed" where a killed process left
+    # its shared-memory port locked, which the runner once read as an answer and failed on).
+    answers = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
+    os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
     import rclpy  # imported here: the runner's side above needs neither rclpy nor mcap
 
-    child = _Child(options.out, options.namespace, tuple(options.exclude))
+    child = _Child(options.out, options.namespace, tuple(options.exclude), answers)
     try:
         child.recorder.discover()
         while not child.done and rclpy.ok():
