@@ -34,3 +34,17 @@ def test_a_profile_the_user_names_is_kept():
     done = subprocess.run([sys.executable, "-c", "import sim_ros, os; print(os.environ['FASTRTPS_DEFAULT_PROFILES_FILE'])"],
                           env=env, capture_output=True, text=True, timeout=60)
     assert done.stdout.strip() == "/nonexistent/theirs.xml"
+
+
+def test_fast_dds_errors_go_to_stderr_and_leave_stdout_to_the_program(tmp_path):
+    """A program's stdout is read (``sim watch``, the recorder's answers): Fast DDS's errors must not land there. The
+    project's profile, with a consumer Fast DDS does not know added after its own, makes Fast DDS log an error."""
+    text = sim_ros.FASTDDS_PROFILES.read_text()
+    assert text.count("</consumer>") == 1, "the profile has one log consumer, followed here by a wrong one"
+    broken = tmp_path / "profiles.xml"
+    broken.write_text(text.replace("</consumer>", "</consumer><consumer><class>NoSuchConsumer</class></consumer>"))
+    env = dict(os.environ, FASTRTPS_DEFAULT_PROFILES_FILE=str(broken))
+    done = subprocess.run([sys.executable, "-c", PROBE], env=env, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "NoSuchConsumer" in done.stderr, "Fast DDS said nothing of the wrong consumer: the test tests nothing"
+    assert done.stdout.strip() == str(broken), done.stdout[-2000:]
