@@ -15,7 +15,7 @@ import robot_models
 from nodes.runtime.executor import ServerExecutor, drop_qos_event_handlers, events_executor, spin_once_logging
 from nodes.runtime.memory import map_large_buffers, release_build_memory
 from nodes.runtime.parameters import ParameterSpec, StartupError, declare, guard_parameter_services
-from nodes.runtime.sim_link import robot_of_sim, sim_time_overrides
+from nodes.runtime.sim_link import robot_of_sim, share_sim_clock, sim_time_overrides
 from nodes.runtime.startup import StopRequest, bounded_cleanup, end_process, fail, help_requested, init_ros, program_name
 from sim_ros.teardown import destroy_node_fully
 
@@ -107,6 +107,7 @@ def _serve(nodes_factory: NodesFactory, node_name: str, argv: list[str], before_
     except robot_models.RobotModelError as error:
         raise StartupError(str(error)) from None
     release_build_memory()
+    share_sim_clock([node for node, _ in served])  # one /clock subscription in the process, not one per node
     for node, _ in served:
         drop_qos_event_handlers(node)
         guard_parameter_services(node)

@@ -4,6 +4,10 @@ parameters and services; ``bringup`` starts it instead of one process per device
 from __future__ import annotations
 
 import pytest
+from builtin_interfaces.msg import Time
+from rcl_interfaces.msg import ParameterEvent
+from rclpy.qos import QoSProfile
+from rosgraph_msgs.msg import Clock
 
 from nodes.devices import devices_of
 from nodes.launch.bringup import commands_for, parse_args
@@ -49,4 +53,41 @@ def test_the_g1_devices_serve_their_own_parameters_from_one_process(client):
         assert values["head"] == pytest.approx(0.0) and values["camera"] > 0 and values["hand_sensors"] > 0, values
         ok, reason = client.set_parameter("head", "head_tilt_angle", 2.0)
         assert not ok and "out of range" in reason, reason  # each node keeps its ranges and reasons
+        assert process.alive()
+
+
+def test_the_devices_of_one_process_keep_sim_time_from_one_clock_subscription(client):
+    """/sim writes each /clock message once to the process, not once per device node; every node's clock follows it."""
+    with running([str(BIN / "device_nodes"), "--ros-args", "-p", "robot:=g1"]) as process:
+        names = devices_of("g1")
+        client.wait_for(lambda: all(client.parameters(name).services_are_ready() for name in names) or not process.alive(),
+                        60.0, f"the parameter services of {names}")
+        assert process.alive(), process.output()[-2000:]
+
+        def clock_readers() -> list[str]:
+            return [info.node_name for info in client.node.get_subscriptions_info_by_topic("/clock")]
+
+        # Discovery gives a reader's node name a moment after the reader.
+        client.wait_for(lambda: (readers := clock_readers()) and "_NODE_NAME_UNKNOWN_" not in readers, 30.0,
+                        "the /clock readers with their node names")
+        readers = clock_readers()
+        assert sorted(name for name in readers if name in names) == [names[0]], readers
+        clock = client.node.create_publisher(Clock, "/clock", 10)
+        events = client.record(ParameterEvent, "/parameter_events", qos=QoSProfile(depth=1000))
+        sim_s = 1234.5
+        for node, parameter in (("power", "battery_low_threshold"), ("head", "head_tilt_angle"),
+                                ("camera", "camera_exposure"), ("hand_sensors", "calibration_window")):
+            value = client.get_parameter(node, parameter)
+
+            def stamped_at_sim_time(node: str = node, parameter: str = parameter, value: float = value) -> bool:
+                # /clock keeps coming (a best-effort subscription may miss one); each set publishes a parameter
+                # event stamped by the node's own clock.
+                clock.publish(Clock(clock=Time(sec=1234, nanosec=500_000_000)))
+                ok, reason = client.set_parameter(node, parameter, value)
+                assert ok, reason
+                return any(event.node == f"/{node}" and abs(event.stamp.sec + event.stamp.nanosec * 1e-9 - sim_s) < 1e-6
+                           for event in events.messages())
+
+            client.wait_for(stamped_at_sim_time, 30.0, f"/{node}'s parameter events stamped with sim time {sim_s} s",
+                            poll=0.2)
         assert process.alive()

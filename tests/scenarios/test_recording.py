@@ -9,6 +9,8 @@ import signal
 import time
 
 import pytest
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
 from std_msgs.msg import Header
 
 from sim_client.scenario.outputs.recorder_process import RecordingError, RecordingProcess
@@ -49,6 +51,13 @@ def test_the_recorder_records_another_process_s_messages_and_closes_its_file(cli
     assert final.counts[f"/{TOPIC}"] >= 20
     assert read_mcap_topics(tmp_path / "recording.mcap")[f"/{TOPIC}"] == final.counts[f"/{TOPIC}"]
     assert recording.status() is final  # answered from the final status, the process being gone
+    # A stamped message is logged at its own stamp (the sim time it belongs to), not at its arrival.
+    with open(tmp_path / "recording.mcap", "rb") as stream:
+        logged = [(message.log_time, message.publish_time, decoded.stamp.sec * 1_000_000_000 + decoded.stamp.nanosec)
+                  for _schema, channel, message, decoded in make_reader(stream, decoder_factories=[DecoderFactory()])
+                  .iter_decoded_messages() if channel.topic == f"/{TOPIC}"]
+    assert len(logged) == final.counts[f"/{TOPIC}"]
+    assert all(log_time == publish_time == stamp for log_time, publish_time, stamp in logged), logged[:5]
 
 
 def test_a_recorder_whose_runner_is_gone_closes_its_file_and_exits(client, publishing, tmp_path):

@@ -155,14 +155,14 @@ class _Child:
         from rclpy.clock import Clock, ClockType
         from rclpy.experimental import EventsExecutor
         from rclpy.node import Node
-        from rclpy.parameter import Parameter
 
         from sim_client.scenario.outputs.recording import McapRecorder  # (imports sim_ros: Fast DDS settings before rclpy.init)
 
         namespace = namespace.strip("/")
-        rclpy.init(args=["--ros-args", "-r", f"/clock:=/{namespace}/clock"] if namespace else None)
-        self.node = Node("scenario_recorder", namespace=f"/{namespace}" if namespace else None,
-                         parameter_overrides=[Parameter("use_sim_time", value=True)])
+        rclpy.init()
+        # On its wall clock: the recording's times are the messages' own stamps (McapRecorder), so this node needs no
+        # /clock subscription of its own (every /clock message would wake this process once more).
+        self.node = Node("scenario_recorder", namespace=f"/{namespace}" if namespace else None)
         self.namespace = f"/{namespace}" if namespace else ""
         self.executor = EventsExecutor()
         self.executor.add_node(self.node)

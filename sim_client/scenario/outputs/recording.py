@@ -19,7 +19,10 @@ class McapRecorder:
     """Subscribes to every topic it discovers (raw CDR) and writes them into an MCAP file.
 
     Call :meth:`discover` now and then (new topics appear as nodes start); :meth:`close` at the
-    end. Log times are the session's sim time [ns] at reception.
+    end. Log and publish times [ns of sim time] are a message's own stamp where its type starts with one (a header,
+    or /clock's time), else the newest stamp recorded before it: the sim time the message belongs to, read from the
+    messages, so the recorder needs no /clock subscription of its own to keep time (one process less that /sim
+    writes every /clock message to; /clock itself is recorded like any topic).
     """
 
     def __init__(self, session: Any, path: pathlib.Path, exclude: tuple[str, ...] = (), namespace: str = "") -> None:
@@ -40,6 +43,7 @@ class McapRecorder:
         self.counts: dict[str, int] = {}
         self.latest_stamp_s: dict[str, float] = {}  # topic -> stamp [s] of the newest message, for stamped types
         self._stamped: set[str] = set()
+        self._newest_stamp_ns = 0  # the newest stamp of any recorded message [ns of sim time]
         self.skipped: dict[str, str] = {}
         self._closed = False
 
@@ -75,16 +79,19 @@ class McapRecorder:
         return {topic: subscription.get_publisher_count() for topic, subscription in self._subscriptions.items()}
 
     def _on_message(self, topic: str, data: bytes) -> None:
-        now = self.session.node.get_clock().now().nanoseconds
         with self._lock:
             if self._closed:
                 return
+            if topic in self._stamped:
+                stamp_ns = _cdr_leading_stamp_ns(data)
+                self.latest_stamp_s[topic] = stamp_ns * 1e-9
+                self._newest_stamp_ns = max(self._newest_stamp_ns, stamp_ns)
+            else:
+                stamp_ns = self._newest_stamp_ns
             self._sequence += 1
-            self._writer.add_message(self._channels[topic], log_time=now, data=data, publish_time=now,
+            self._writer.add_message(self._channels[topic], log_time=stamp_ns, data=data, publish_time=stamp_ns,
                                      sequence=self._sequence)
             self.counts[topic] += 1
-            if topic in self._stamped:
-                self.latest_stamp_s[topic] = _cdr_leading_stamp_s(data)
 
     def close(self) -> None:
         subscriptions, self._subscriptions = self._subscriptions, {}
@@ -104,14 +111,14 @@ def _starts_with_stamp(msg_type: Any) -> bool:
     return bool(fields) and fields[0] in ("std_msgs/Header", "builtin_interfaces/Time")
 
 
-def _cdr_leading_stamp_s(data: bytes) -> float:
-    """The leading stamp [s] of a serialized message that starts with one (sec int32, nanosec uint32).
+def _cdr_leading_stamp_ns(data: bytes) -> int:
+    """The leading stamp [ns] of a serialized message that starts with one (sec int32, nanosec uint32); 0 before t = 0.
 
     Bytes 0-3 are the CDR encapsulation header; byte 1 says the byte order (1: little-endian).
     """
     order = "<" if data[1] == 1 else ">"
     sec, nanosec = struct.unpack_from(order + "iI", data, 4)
-    return sec + nanosec * 1e-9
+    return max(0, sec * 1_000_000_000 + nanosec)
 
 
 def read_mcap_topics(path: pathlib.Path) -> dict[str, int]:
