@@ -84,7 +84,7 @@ class Publications:
         self._clock_pub = node.create_publisher(Clock, CLOCK_TOPIC, STREAMS)
         self._joint_pub = node.create_publisher(JointState, JOINT_STATES_TOPIC, STREAMS)
         self._odom_pub = node.create_publisher(Odometry, ODOM_TOPIC, RELIABLE)
-        self._tf_pub = node.create_publisher(TFMessage, TF_TOPIC, QoSProfile(depth=100))
+        self._tf_pub = node.create_publisher(TFMessage, TF_TOPIC, RELIABLE)  # 25 s at 40 Hz for a reader that lags
         self._tf_static_pub = node.create_publisher(TFMessage, TF_STATIC_TOPIC, LATCHED)
         self._rtf_pub = node.create_publisher(Float64, "~/real_time_factor", RELIABLE)
         self._objects_pub = node.create_publisher(ObjectStates, OBJECTS_TOPIC, RELIABLE)

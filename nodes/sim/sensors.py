@@ -91,6 +91,8 @@ RATE_PARAMETERS = (
 
 T = TypeVar("T")
 
+SENSOR_HISTORY_DEPTH = 1000  # messages each sensor writer keeps for a reader that lags (10 s of IMU at 100 Hz)
+
 
 @dataclass(frozen=True)
 class _WrenchStream:
@@ -127,7 +129,10 @@ class SensorStreams:
         self._imu_template: ImuTemplate | None = None
         self._apply_noise()
         self._next_imu = self._next_wrench = 0.0
-        qos = QoSProfile(depth=100)
+        # 10 s of each sensor stream at its default rate (IMU 100 Hz) for a reader that lags, as /clock and /joint_states
+        # keep: a lock-stepped run publishes a stride of sim time in a burst, and with 100 (1 s of IMU) a recorder on
+        # a loaded machine lost IMU messages mid-run.
+        qos = QoSProfile(depth=SENSOR_HISTORY_DEPTH)
         self._imu_pub = node.create_publisher(Imu, IMU_TOPIC, qos) if layout.imu is not None else None
         self._imu_frame = layout.imu.frame if layout.imu is not None else ""
         if layout.imu is not None:

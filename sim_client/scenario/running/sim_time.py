@@ -12,13 +12,14 @@ import contextlib
 import itertools
 import random
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import Any
 
 from rosgraph_msgs.msg import Clock
 
 from sim_client.scenario.model.series import stamp_s
 from sim_interfaces.srv import Step as StepSrv
+from sim_ros.names import BATTERY_TOPIC, IMU_TOPIC, ODOM_TOPIC, wrench_topic
 from sim_ros.session import RosSession, WaitTimeout
 
 STARTUP_WALL_S = 90.0
@@ -28,6 +29,36 @@ GOAL_END_WALL_S = 5.0  # wall seconds to wait for the results of goals /sim repo
 # stepping again, so a lost request or answer costs this much, not the run (an answer is lost when the answering
 # side has not matched the asking one yet: a fresh clone's run on a loaded machine once waited 30 s and failed).
 STEP_RESEND_S = 2.0
+CHUNK_S = 0.02  # sim time advanced between checks of conditions on measures [s]
+# Sim time advanced at once when only goal ends (seen where they happen: /sim stops its step there) and
+# times are awaited [s]: fewer /sim/step round trips per sim second, the same numbers. As fast as possible, a
+# stride is 1 s of sim time: walk_2m recorded, lock-stepped on a warm bring-up, went from wall/sim 0.193 at 0.25 s
+# to 0.161 (medians of 4, alternated; 0.5 s: 0.170, 2 s: 0.151). Not longer: /sim's sensor writers keep 1 s of
+# their messages (100 at 100 Hz) for a reader that lags, e.g. the recorder at the end of a burst.
+STRIDE_S = 1.0
+# Paced (rtf > 0), or while a recorded camera is watched, a stride stays short: the sim moves in short jumps for
+# whoever watches it at real time, and the camera's writer keeps its last 4 frames (0.4 s of sim time at 10 Hz)
+# for the recorder, which the runner waits for after each step.
+SHORT_STRIDE_S = 0.25
+
+
+STREAM_RATES = ("imu_rate", "wrench_rate", "state_rate")  # /sim's rates of its periodic streams besides /clock's, /joint_states'
+
+
+def stream_slack(topics: Iterable[str], periods: dict[str, float], namespace: str) -> dict[str, float]:
+    """Of recorded ``topics`` (full names), /sim's periodic streams besides /clock and /joint_states: how long before a
+    lock-stepped run's end [s of sim time] the last message of each may be stamped (a period of its rate, from
+    ``periods`` by the names of ``STREAM_RATES``; /odom 0.05 s, as the runner waits for its own)."""
+    slack: dict[str, float] = {}
+    for topic in topics:
+        name = topic.removeprefix(f"{namespace}/")
+        rate_name = ("imu_rate" if name == IMU_TOPIC else "wrench_rate" if name.endswith(wrench_topic(""))
+                     else "state_rate" if name == BATTERY_TOPIC else None)
+        if name == ODOM_TOPIC:
+            slack[topic] = 0.05
+        elif rate_name in periods:
+            slack[topic] = periods[rate_name] + 1e-6
+    return slack
 
 
 class StepFailure(RuntimeError):
