@@ -11,6 +11,7 @@ import time
 import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
+from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Header
 
 from sim_client.scenario.outputs.recorder_process import RecordingError, RecordingProcess
@@ -21,20 +22,24 @@ TOPIC = "recording_test/header"  # a stamped type: the recorder follows its newe
 
 @pytest.fixture
 def publishing(client):
-    """``/recording_test/header`` published from the test's client at ~200 Hz, stamp = count / 100 [s]."""
+    """``/recording_test/header`` published from the test's client at ~200 Hz, stamp = count / 100 [s], each after a
+    ``/clock`` of the same time (the sim time the recorder follows)."""
     publisher = client.node.create_publisher(Header, TOPIC, 100)
+    clock = client.node.create_publisher(Clock, "/clock", 100)
     sent = [0]
 
     def publish() -> None:
         sent[0] += 1
         message = Header(frame_id="test")
         message.stamp.sec, message.stamp.nanosec = divmod(sent[0], 100)[0], divmod(sent[0], 100)[1] * 10_000_000
+        clock.publish(Clock(clock=message.stamp))
         publisher.publish(message)
 
     timer = client.node.create_timer(0.005, publish)
     yield sent
     client.node.destroy_timer(timer)
     client.node.destroy_publisher(publisher)
+    client.node.destroy_publisher(clock)
 
 
 def _wait_recorded(recording: RecordingProcess, topic: str, count: int, client) -> None:
@@ -52,6 +57,7 @@ def test_the_recorder_records_another_process_s_messages_and_closes_its_file(cli
     assert read_mcap_topics(tmp_path / "recording.mcap")[f"/{TOPIC}"] == final.counts[f"/{TOPIC}"]
     assert recording.status() is final  # answered from the final status, the process being gone
     # A stamped message is logged at its own stamp (the sim time it belongs to), not at its arrival.
+    # (The recorder's sim time is the newest /clock; a stamp far from it, e.g. on wall time, is logged at that /clock.)
     with open(tmp_path / "recording.mcap", "rb") as stream:
         logged = [(message.log_time, message.publish_time, decoded.stamp.sec * 1_000_000_000 + decoded.stamp.nanosec)
                   for _schema, channel, message, decoded in make_reader(stream, decoder_factories=[DecoderFactory()])

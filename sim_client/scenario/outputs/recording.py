@@ -13,6 +13,11 @@ from typing import Any
 
 from sim_ros.interfaces import import_type, matching_qos, message_definition
 
+# A stamp further than this from the newest /clock [ns] is on another clock (a node on wall time stamps its log and
+# parameter events with it): such a message is logged at the newest /clock instead. Lock-stepped, a stride's burst
+# may bring a stream's messages up to a stride (1 s of sim time) ahead of /clock's.
+STAMP_WINDOW_NS = 5_000_000_000
+
 
 # ----- MCAP recording -----------------------------------------------------------------------
 class McapRecorder:
@@ -20,9 +25,9 @@ class McapRecorder:
 
     Call :meth:`discover` now and then (new topics appear as nodes start); :meth:`close` at the
     end. Log and publish times [ns of sim time] are a message's own stamp where its type starts with one (a header,
-    or /clock's time), else the newest stamp recorded before it: the sim time the message belongs to, read from the
-    messages, so the recorder needs no /clock subscription of its own to keep time (one process less that /sim
-    writes every /clock message to; /clock itself is recorded like any topic).
+    or /clock's time) within ``STAMP_WINDOW_NS`` of the newest /clock recorded, else that /clock: the sim time the
+    message belongs to, read from the messages, so the recorder needs no /clock subscription of its own to keep time
+    (one process less that /sim writes every /clock message to; /clock itself is recorded like any topic).
     """
 
     def __init__(self, session: Any, path: pathlib.Path, exclude: tuple[str, ...] = (), namespace: str = "") -> None:
@@ -43,7 +48,8 @@ class McapRecorder:
         self.counts: dict[str, int] = {}
         self.latest_stamp_s: dict[str, float] = {}  # topic -> stamp [s] of the newest message, for stamped types
         self._stamped: set[str] = set()
-        self._newest_stamp_ns = 0  # the newest stamp of any recorded message [ns of sim time]
+        self._clock_topic = f"{namespace}/clock"
+        self._clock_ns = 0  # the newest /clock recorded [ns of sim time]: the recorder's sim time, without a subscription
         self.skipped: dict[str, str] = {}
         self._closed = False
 
@@ -85,9 +91,12 @@ class McapRecorder:
             if topic in self._stamped:
                 stamp_ns = _cdr_leading_stamp_ns(data)
                 self.latest_stamp_s[topic] = stamp_ns * 1e-9
-                self._newest_stamp_ns = max(self._newest_stamp_ns, stamp_ns)
+                if topic == self._clock_topic:
+                    self._clock_ns = stamp_ns  # (a reset takes sim time back to 0: the newest, not the largest)
+                elif abs(stamp_ns - self._clock_ns) > STAMP_WINDOW_NS:
+                    stamp_ns = self._clock_ns  # stamped on another clock (a node on wall time): at the sim time it came
             else:
-                stamp_ns = self._newest_stamp_ns
+                stamp_ns = self._clock_ns
             self._sequence += 1
             self._writer.add_message(self._channels[topic], log_time=stamp_ns, data=data, publish_time=stamp_ns,
                                      sequence=self._sequence)
