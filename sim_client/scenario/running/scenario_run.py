@@ -432,7 +432,7 @@ class ScenarioRun:
                    if self.lock_step and isinstance(rate := self.parameter("sim", name), int | float) and rate > 0}
         slack = {topic: periods.get(topic, 0.05) + exact for topic in self.streams}
         rates = {name: self.parameter("sim", name) for name in sim_time.STREAM_RATES} if self.mcap and self.lock_step else {}
-        periods.update({name: 1.0 / rate for name, rate in rates.items() if isinstance(rate, int | float) and rate > 0})
+        rate_periods = {name: 1.0 / rate for name, rate in rates.items() if isinstance(rate, int | float) and rate > 0}
 
         feedback_due = self._feedback_due(end)
 
@@ -449,7 +449,7 @@ class ScenarioRun:
                 return True
             recorded = self.mcap.status()
             # /sim's other periodic streams too: after a long stride's burst, on a loaded machine, /imu once trailed by 2.4 s.
-            waits = {**slack, **sim_time.stream_slack(recorded.counts, periods, self.session.namespace)}
+            waits = {**slack, **sim_time.stream_slack(recorded.counts, rate_periods, self.session.namespace)}
             return all(recorded.latest_stamp_s.get(topic, -math.inf) >= end - period for topic, period in waits.items()
                        if recorded.counts.get(topic, 0) > 0)
 
