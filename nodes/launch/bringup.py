@@ -40,7 +40,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--rtf", type=float, default=1.0, help="real-time factor; 0 = as fast as possible")
     parser.add_argument("--paused", action="store_true", help="start with the physics paused")
     parser.add_argument("--clock-rate", type=float, default=None,
-                        help="/sim's /clock rate [Hz of sim time] (default: its clock_rate parameter's, 100)")
+                        help="/sim's /clock rate [Hz of sim time] (default: its clock_rate parameter's, 20)")
     parser.add_argument("--joint-state-rate", type=float, default=None,
                         help="/sim's /joint_states rate [Hz of sim time] (default: its joint_state_rate parameter's, 200)")
     parser.add_argument("--no-respawn", dest="respawn", action="store_false",

@@ -106,7 +106,7 @@ def test_frames_come_at_camera_rate_in_sim_time(client, g1):
 
     # /camera hands the new rate to /sim on a latched topic, so the first frames recorded may still
     # come at the old rate (10 Hz): wait until the rate has changed.
-    # Frames ride along /sim's publication stops (every 1/clock_rate = 10 ms of sim time).
+    # Frames ride along /sim's publication stops (every 5 ms of sim time at the default joint_state_rate).
     client.wait_for(lambda: images.count >= 12 and abs(float(np.median(last_gaps())) - 0.05) <= 0.011,
                     60.0, "ten frames at 20 Hz of sim time")
     gaps = last_gaps()

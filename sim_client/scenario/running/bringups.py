@@ -36,11 +36,12 @@ from simulation_interfaces.msg import Result
 from simulation_interfaces.srv import LoadWorld, ResetSimulation
 
 BringupKey = tuple[str, str, float]  # robot, scene, real-time factor
-# /clock of a scenario's bring-up [Hz of sim time]: what its nodes on sim time need, not /sim's default 100. Their
-# timers on sim time run at 10 Hz (the servers' resend watchdog); action feedback and skill progress go by the stamps
-# of /sim's messages, not by a node's clock. Every node of a bring-up (and the runner and the recorder) handles every
-# /clock message in Python, and each wakes a process /sim shares 2 cores with: walk_2m recorded, lock-stepped, went
-# from wall/sim 0.192 at 50 Hz to 0.164 at 20 Hz (medians of 4, alternated; 10 Hz gave no more, 0.169 against 0.168).
+# /clock of a scenario's bring-up [Hz of sim time]: what its nodes on sim time need, and /sim's default (100 until 28
+# November), named here because a run's settle depends on it. Their timers on sim time run at 10 Hz (the servers' resend
+# watchdog); action feedback and skill progress go by the stamps of /sim's messages, not by a node's clock. Every node
+# of a bring-up (and the runner and the recorder) handles every /clock message in Python, and each wakes a process /sim
+# shares 2 cores with: walk_2m recorded, lock-stepped, went from wall/sim 0.192 at 50 Hz to 0.164 at 20 Hz (medians of
+# 4, alternated; 10 Hz gave no more, 0.169 against 0.168).
 CLOCK_RATE_HZ = 20.0
 # /joint_states of a scenario's bring-up [Hz of sim time]: what its recording, plots and video read (a 20 fps video
 # of a run played at most twice as fast reads 40 per sim second), not /sim's default 200.
