@@ -24,8 +24,10 @@ class ChildProcess:
     """An executable of this venv in its own process group, its output in a log file."""
 
     def __init__(self, args: list[str], log_dir: pathlib.Path | None = None, inherit_output: bool = False,
-                 own_group: bool = True, relay_output: bool = False) -> None:
+                 own_group: bool = True, relay_output: bool = False, env: dict[str, str] | None = None) -> None:
+        """``env``: the process's environment (default: this one's)."""
         self.args = args
+        environment = dict(os.environ) if env is None else env
         self._own_group = own_group
         self._log: typing.IO[bytes] | None = None
         self._relay: threading.Thread | None = None
@@ -35,7 +37,7 @@ class ChildProcess:
             self.log_path = pathlib.Path("/dev/null")
             self.process = subprocess.Popen(
                 [str(BIN / args[0]), *args[1:]], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                start_new_session=own_group, env=dict(os.environ))
+                start_new_session=own_group, env=environment)
             self._relay = threading.Thread(target=self._relay_lines, name=f"{args[0]}-output", daemon=True)
             self._relay.start()
             return
@@ -53,7 +55,7 @@ class ChildProcess:
             self._temporary_log = True
         self.process = subprocess.Popen(
             [str(BIN / args[0]), *args[1:]], stdout=self._log, stderr=None if inherit_output else subprocess.STDOUT,
-            start_new_session=own_group, env=dict(os.environ),
+            start_new_session=own_group, env=environment,
         )
 
     def _relay_lines(self) -> None:

@@ -7,7 +7,9 @@ interfaces as when started one by one. Ctrl-C (or SIGTERM) stops them all.
 A node that dies (a non-zero exit) is reported (which, its exit code, its last lines of output) and started again, as
 a launch file's ``respawn`` does, after ``--respawn-delay`` seconds and at most ``--respawn-limit``
 times per node; the others keep running (the servers serve a restarted /sim, which starts from its
-keyframe). With ``--no-respawn`` a dying node stops the others and bringup exits with an error.
+keyframe). A restarted node talks over Fast DDS's UDP transport only (:func:`restart_environment`: a killed process's
+shared-memory port can leave the next one unreachable). With ``--no-respawn`` a dying node stops the others and
+bringup exits with an error.
 A client waiting on a goal of a server that died gets its result from bringup all the same
 (:mod:`nodes.launch.result_keeper`): ABORTED, ``SIM_FAULT``, naming the dead server.
 """
@@ -15,6 +17,7 @@ A client waiting on a goal of a server that died gets its result from bringup al
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import signal
 import sys
@@ -28,6 +31,7 @@ from nodes.servers.actions import ACTION_TYPES, SERVED_BY
 from sim_ros.names import MAX_STREAM_RATE_HZ
 from sim_ros.processes import ChildProcess
 
+FASTDDS_TRANSPORTS_VARIABLE = "FASTDDS_BUILTIN_TRANSPORTS"  # Fast DDS's choice of its built-in transports
 MIN_CLOCK_RATE_HZ = 10.0  # /sim's clock_rate range: this to sim_ros.names.MAX_STREAM_RATE_HZ
 MIN_JOINT_STATE_RATE_HZ = 1.0  # /sim's joint_state_rate range: this to sim_ros.names.MAX_STREAM_RATE_HZ
 NAMESPACE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*")
@@ -107,6 +111,19 @@ def served_actions(commands: list[list[str]]) -> dict[str, list[tuple[str, Any]]
             for command in commands if command[0] in SERVED_BY}
 
 
+def restart_environment() -> dict[str, str]:
+    """The environment of a node started again after it died: Fast DDS on UDP only, unless the user chose transports.
+
+    A process that dies by a signal leaves its shared-memory port behind. The next process that opens the same port
+    (it may be the restarted node, taking the freed participant index) finds it a zombie, removes its segment and makes
+    a new one, while the processes that had written to the old one go on writing there: they discover the restarted
+    node but none of their messages reach it (eProsima/Fast-DDS#5053, #4728; Fast DDS 2.14 of the PyPI wheels). A
+    restarted server was once reached by no goal for 3 minutes. On UDP only it opens no shared-memory port, and the
+    others reach it over the loopback interface (each side uses the locators the other announced).
+    """
+    return {**os.environ, FASTDDS_TRANSPORTS_VARIABLE: os.environ.get(FASTDDS_TRANSPORTS_VARIABLE, "UDPv4")}
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     split = argv.index("--ros-args") if "--ros-args" in argv else len(argv)
@@ -159,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
                 note = " (it starts from its keyframe)" if child.args[0] == "sim_node" else ""
                 print(f"bringup: restarting {child.args[0]}{note}, restart {restarts[index]} of {options.respawn_limit}",
                       file=sys.stderr, flush=True)
-                children[index] = ChildProcess(commands[index], own_group=False, relay_output=True)
+                children[index] = ChildProcess(commands[index], own_group=False, relay_output=True, env=restart_environment())
         return 0
     finally:
         for child in children:  # signal all first, then wait: they shut down in parallel

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import pathlib
 import signal
 import time
 
@@ -30,6 +31,14 @@ def child_pid(parent: int, executable: str) -> int | None:
     return child_processes(parent).get(executable)
 
 
+def transports_of(pid: int | None) -> str | None:
+    """The Fast DDS built-in transports a process was started with (its FASTDDS_BUILTIN_TRANSPORTS), if named."""
+    assert pid is not None
+    entries = pathlib.Path(f"/proc/{pid}/environ").read_bytes().split(b"\0")
+    named = [entry.split(b"=", 1)[1].decode() for entry in entries if entry.startswith(b"FASTDDS_BUILTIN_TRANSPORTS=")]
+    return named[0] if named else None
+
+
 def test_a_killed_sim_is_reported_restarted_from_its_keyframe_and_served_again(client, tmp_path):
     bringup = ChildProcess(["bringup", "--robot", "g1", "--respawn-delay", "0.2"], tmp_path)
     try:
@@ -48,6 +57,7 @@ def test_a_killed_sim_is_reported_restarted_from_its_keyframe_and_served_again(c
                 "restarting sim_node")[-1]
 
         client.wait_for(restarted, READY_S, "bringup to restart sim_node")
+        assert transports_of(child_pid(bringup.process.pid, "sim_node")) == "UDPv4"  # no shared-memory port of its own
         log = bringup.output()
         assert "sim_node died with exit code -9" in log and "restarting sim_node (it starts from its keyframe)" in log
         again = send(client, walk, Walk.Goal(distance=-0.5, speed=0.3))
@@ -122,6 +132,8 @@ def test_a_client_of_a_killed_server_gets_a_result_and_the_restarted_server_serv
 
         client.wait_for(lambda: child_pid(bringup.process.pid, executable) not in (None, first), READY_S,
                         f"bringup to restart {executable}")
+        assert transports_of(child_pid(bringup.process.pid, executable)) == "UDPv4"
+        assert transports_of(child_pid(bringup.process.pid, "sim_node")) is None  # the others keep shared memory
         restarted_at = time.monotonic()
         log = bringup.output()
         assert f"{executable} died with exit code -9" in log and f"waiting on {executable}'s goals" in log
