@@ -29,13 +29,14 @@ $(STAMPS)/project: $(STAMPS)/interfaces pyproject.toml package.xml tools/registe
 demo: setup
 	$(VENV)/bin/sim-demo
 
-# Two workers, one test file each at a time (a file's bring-up stays in its worker), the longest files first
-# (tests/conftest.py orders them; xdist keeps that order); each worker has a ROS domain of its own. On 2 cores three
-# workers took 7:38-8:01 against 9:27-9:40 (the tests wait a third of their wall time), but one run of three failed
-# test_respawn (a restarted server reached by no client for 3 min: Fast DDS's broken shared-memory port of a killed
-# process, worse on a loaded machine; see the README's Known limits), so two stay the default: TEST_WORKERS=3 for
-# the faster run. TEST_WORKERS=0 runs everything in one process.
-TEST_WORKERS ?= 2
+# A worker per core and one more (at most 8), one test file each at a time (a file's bring-up stays in its worker), the
+# longest files first (tests/conftest.py orders them; xdist keeps that order); each worker has a ROS domain of its own.
+# The tests wait on sim time, discovery and real-time goals a good part of their wall time: on 2 cores (28 November,
+# /clock at 20 Hz) 2 workers took 9:07 (642 s of CPU), 3 took 6:54 (647 s) and 4 took 6:33 (681 s, the two cores
+# saturated and the README's commands 276 s instead of 198). Three workers once failed test_respawn (a restarted server
+# that no client reached: Fast DDS's shared-memory port of a killed process, eProsima/Fast-DDS#5053); bringup now
+# restarts a node on UDP only. TEST_WORKERS=0 runs everything in one process.
+TEST_WORKERS ?= $(shell n=$$(nproc 2>/dev/null || echo 1); echo $$(( n + 1 < 8 ? n + 1 : 8 )))
 PYTEST_PARALLEL := $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder \
 	--max-worker-restart 2)
 

@@ -42,7 +42,7 @@ HANG_DIR_VARIABLE = "SIM_TEST_HANG_DIR"  # the folder where a hung test's stacks
 TEST_WATCHDOG_S = float(os.environ.get("SIM_TEST_WATCHDOG_S", "600"))  # [s] wall: a test (set-up to tear-down) longer is hung
 
 # The files that keep a worker busy longest, longest first (45 s to 8 min each, measured one at a time on a loaded
-# 2-core machine; the ten slowest tests are printed at the end of every run). `make test` hands whole files to its two workers in
+# 2-core machine; the ten slowest tests are printed at the end of every run). `make test` hands whole files to its workers in
 # collection order (--dist loadfile --no-loadscope-reorder): a long file handed out last keeps one worker running
 # alone while the other has finished. Every other file follows in its usual order.
 LONGEST_FIRST = (
