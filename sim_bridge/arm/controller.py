@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 
 from robot_models import RobotSpec
-from sim_bridge.arm.description import ArmInfo
+from sim_bridge.arm.description import ArmInfo, arm_infos, check_arm_name
 from sim_bridge.arm.kinematics import ArmKinematics
 from sim_bridge.arm.poses import interpolate_quat, mat_to_quat, rotation_error, validate_pose
 from sim_bridge.arm.types import ArmControllerConfig, ArmMode, ArmStatus, GripperStatus
@@ -64,8 +64,10 @@ class ArmController:
     def __init__(self, robot: RobotSpec, config: ArmControllerConfig | None = None) -> None:
         self.robot = robot
         self.config = config or ArmControllerConfig()
-        self.kinematics = ArmKinematics(robot, self.config)
-        self.arms: dict[str, ArmInfo] = self.kinematics.arms
+        # The IK model (~0.3 CPU-s for the G1's two arms) is built at the first arm goal, not with /sim: most runs
+        # never move an arm, and every bring-up paid it at start.
+        self._kinematics: ArmKinematics | None = None
+        self.arms: dict[str, ArmInfo] = arm_infos(robot, robot.arm_scene)
         self._state = {arm: _ArmState() for arm in self.arms}
         self._model: mujoco.MjModel | None = None
         self._data: mujoco.MjData | None = None
@@ -75,6 +77,13 @@ class ArmController:
             arm: {int(robot.model.jnt_bodyid[robot.model.joint(j).id]) for j in info.gripper_joints}
             for arm, info in self.arms.items()
         }
+
+    @property
+    def kinematics(self) -> ArmKinematics:
+        """The arms' IK model and problems, built on first use (from the thread that steps, or under its lock)."""
+        if self._kinematics is None:
+            self._kinematics = ArmKinematics(self.robot, self.config)
+        return self._kinematics
 
     # ----- Controller protocol -------------------------------------------------------------
     @property
@@ -124,7 +133,7 @@ class ArmController:
             UnknownNameError: unknown arm (the message lists the arms).
             InvalidGoalError: malformed pose or speed out of range.
         """
-        info = self.kinematics.arm(arm)
+        info = check_arm_name(self.arms, arm)
         target = validate_pose(target_pose_world)
         linear = self.config.default_linear_speed if max_linear_speed is None else float(max_linear_speed)
         angular = self.config.default_angular_speed if max_angular_speed is None else float(max_angular_speed)
@@ -160,7 +169,7 @@ class ArmController:
         Raises:
             UnknownNameError: unknown arm.
         """
-        info = self.kinematics.arm(arm)
+        info = check_arm_name(self.arms, arm)
         data = self._require_data()
         state = self._state[arm]
         self._sync_if_idle(info, state, data)
@@ -190,11 +199,11 @@ class ArmController:
             UnknownNameError: unknown arm.
             InvalidGoalError: the arm has no gripper, or a value out of range.
         """
-        info = self.kinematics.arm(arm)
+        info = check_arm_name(self.arms, arm)
         if not info.gripper_joints:
             with_gripper = [a for a, i in self.arms.items() if i.gripper_joints]
             raise InvalidGoalError(f"arm {arm!r} has no gripper; arms with a gripper: {', '.join(with_gripper) or 'none'}")
-        open_width = self.kinematics.scene.gripper_open_width
+        open_width = self.robot.arm_scene.gripper_open_width
         if not (math.isfinite(width_m) and 0.0 <= width_m <= open_width + 1e-9):
             raise InvalidGoalError(f"gripper width must be in [0, {open_width}] m, got {width_m}")
         grasp = self.robot.grasp
@@ -212,7 +221,7 @@ class ArmController:
         Raises:
             UnknownNameError: unknown arm.
         """
-        info = self.kinematics.arm(arm)
+        info = check_arm_name(self.arms, arm)
         data = self._require_data()
         state = self._state[arm]
         tool = Pose(data.site_xpos[info.site_id].copy(), mat_to_quat(data.site_xmat[info.site_id]))

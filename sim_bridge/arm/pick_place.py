@@ -18,6 +18,7 @@ import numpy as np
 from robot_models import ArmScene
 from robot_models.validation import check_range, is_number
 from sim_bridge.arm.controller import ArmController
+from sim_bridge.arm.description import check_arm_name
 from sim_bridge.arm.poses import quat_to_mat
 from sim_bridge.errors import InvalidGoalError, UnknownNameError
 from sim_bridge.state import Pose
@@ -218,7 +219,7 @@ class PickPlace:
     def __init__(self, arm_controller: ArmController, table_top_z: float | None = None, stage_timeout: float = 6.0) -> None:
         self.arm = arm_controller
         self.robot = arm_controller.robot
-        scene = arm_controller.kinematics.scene
+        scene = arm_controller.robot.arm_scene
         z = scene.objects_table_top_z if table_top_z is None else table_top_z
         if z is None:
             raise InvalidGoalError(f"robot {self.robot.name!r} has no table: pass table_top_z")
@@ -255,11 +256,11 @@ class PickPlace:
         """
         if goal.object_name not in self.robot.objects:
             raise UnknownNameError(f"unknown object {goal.object_name!r}; objects: {', '.join(self.robot.objects) or 'none'}")
-        info = self.arm.kinematics.arm(goal.arm)
+        info = check_arm_name(self.arm.arms, goal.arm)
         if not info.gripper_joints:
             with_gripper = [a for a, i in self.arm.arms.items() if i.gripper_joints]
             raise InvalidGoalError(f"arm {goal.arm!r} has no gripper; arms with a gripper: {', '.join(with_gripper) or 'none'}")
-        problem = place_problem(self.arm.kinematics.scene, goal.place_position)
+        problem = place_problem(self.arm.robot.arm_scene, goal.place_position)
         if problem:
             raise InvalidGoalError(problem)
         data = self._require_data()
@@ -358,7 +359,7 @@ class PickPlace:
             if not run.stage_commanded:
                 # Of the box's four equivalent yaws, grasp at the one nearest tool yaw 0 (mid wrist range).
                 run.grasp_yaw = _nearest_quarter_turn(_yaw_of(data.xquat[run.object_body]), 0.0)
-                opening = min(size + 2 * self.RELEASE_CLEARANCE, self.arm.kinematics.scene.gripper_open_width)
+                opening = min(size + 2 * self.RELEASE_CLEARANCE, self.arm.robot.arm_scene.gripper_open_width)
                 self.arm.set_gripper(goal.arm, opening, goal.grip_force)
                 above = object_position + np.array([0.0, 0.0, goal.approach_height])
                 run.stage_commanded = self._move(run, above, run.grasp_yaw, goal.transport_speed)

@@ -59,6 +59,18 @@ def test_controller_knows_every_arm(arms, panda, g1):
     assert tuple(ArmController(robot).arms) == arms[1]
 
 
+def test_the_ik_model_is_built_at_the_first_arm_goal_not_with_the_controller(panda_sim):
+    """A robot that never moves an arm never pays for its IK model (~0.3 CPU-s for the G1's at every /sim start)."""
+    sim, arm = panda_sim
+    sim.step(50)
+    assert arm.status("arm").mode is ArmMode.IDLE
+    with pytest.raises(UnknownNameError, match="arm"):  # names are checked without it
+        arm.set_target("leg", Pose(np.array([0.5, 0.2, 0.3]), TOOL_DOWN))
+    assert arm._kinematics is None
+    arm.set_target("arm", Pose(np.array([0.5, 0.2, 0.3]), TOOL_DOWN))
+    assert arm._kinematics is not None
+
+
 def test_panda_reaches_five_poses(panda_sim):
     sim, arm = panda_sim
     targets = [
