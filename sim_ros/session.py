@@ -31,7 +31,8 @@ RESPONSE_QOS = QoSProfile(depth=1000)
 CLOSE_WAIT_S = 10.0  # [s of wall time] close() waits this long for the executor's callbacks and thread to end
 RESEND_S = 5.0  # [s of wall time] a request that may be sent twice, unanswered this long, is sent again
 # Services whose request may be sent twice (queries, and setting parameters to values): RosSession.call sends
-# them again every RESEND_S until answered. A reset, a step or a state change is never sent twice.
+# them again every RESEND_S until answered. A reset, a step or a state change is not (a lock-stepped scenario run
+# sends its reset again, as /sim is paused then and a second reset restores the same state; a step carries an id).
 SENT_AGAIN = frozenset({
     "GetParameters", "DescribeParameters", "ListParameters", "GetParameterTypes", "SetParameters",
     "SetParametersAtomically", "GetState", "GetAvailableStates", "GetAvailableTransitions", "GetEntityState",

@@ -2,8 +2,8 @@
 
 The environment is fixed before anything imports rclpy, so every process started by a test
 (and the test's own clients) share this run's ``ROS_DOMAIN_ID`` and hear no other run. With
-pytest-xdist each worker takes the next domain after the run's base, so workers never hear each
-other either.
+pytest-xdist each worker takes a domain of its own, ``WORKER_DOMAIN_STRIDE`` after the previous worker's (the
+domains between are its sweeps'), so workers never hear each other either.
 """
 
 from __future__ import annotations
@@ -14,7 +14,13 @@ import uuid
 # Domain ids 1..101 are safe for Fast DDS ports; 0 is everyone's default, so it is avoided.
 os.environ.setdefault("SIM_TEST_DOMAIN_ID", str(1 + os.getpid() % 100))  # the run's base; workers inherit it
 _worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0").removeprefix("gw")
-os.environ["ROS_DOMAIN_ID"] = str(1 + (int(os.environ["SIM_TEST_DOMAIN_ID"]) - 1 + int(_worker or 0)) % 101)
+# Workers' domains are 5 apart: a sweep a test runs gives its Ray workers the domains after its own + 1
+# (sim_client.scenario.running.sweep: D + 2, D + 3 for two), which were the next workers' domains when they were 1
+# apart. With three workers a sweep's bring-up answered another worker's scenario ("/sim/reset failed: unknown keyframe
+# 'home'; keyframes: stand": a Panda run's reset reached a G1) and put its camera frames in another worker's recording.
+WORKER_DOMAIN_STRIDE = 5
+_offset = WORKER_DOMAIN_STRIDE * int(_worker or 0)
+os.environ["ROS_DOMAIN_ID"] = str(1 + (int(os.environ["SIM_TEST_DOMAIN_ID"]) - 1 + _offset) % 101)
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("MUJOCO_GL", "egl")
 # One OpenBLAS thread in the tests' processes (numpy loads before the project's packages in a test module); the

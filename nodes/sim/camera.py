@@ -48,6 +48,9 @@ from sim_ros.names import LATCHED, TF_STATIC_TOPIC, camera_info_topic, camera_se
 from sim_ros.stamps import set_time
 
 IMAGE_QOS = QoSProfile(depth=4)  # a frame is ~0.2-0.9 MB: a slow reader gets the latest few, not seconds of them
+# camera_info is ~0.3 kB: 10 s of it at 10 Hz, so a reader that got a frame gets its info (a recorder on a loaded machine
+# once had a frame whose info the writer had already dropped)
+INFO_QOS = QoSProfile(depth=100)
 NANOSECONDS_PER_SECOND = 1_000_000_000
 SUBMIT_WAIT_S = 10.0  # longest wait [wall s] for the frame in flight; a CPU frame takes tens of ms
 _STAMP_SENTINEL = struct.pack("<iI", 0x2BADF00D, 0x1CEB00DA)
@@ -122,7 +125,7 @@ class CameraStreams:
         group = MutuallyExclusiveCallbackGroup()
         for layout in sim.robot.cameras:
             camera = _Camera(layout, node.create_publisher(Image, image_topic(layout.name), IMAGE_QOS),
-                             node.create_publisher(CameraInfo, camera_info_topic(layout.name), IMAGE_QOS))
+                             node.create_publisher(CameraInfo, camera_info_topic(layout.name), INFO_QOS))
             self._cameras.append(camera)
             node.create_subscription(CameraSettings, camera_settings_topic(layout.name),
                                      functools.partial(self._on_settings, camera), LATCHED, callback_group=group)

@@ -39,7 +39,7 @@ from sim_client.scenario.running.sim_time import SERVICE_WALL_S, STARTUP_WALL_S,
 from sim_interfaces.msg import LocomotionState, ObjectStates
 from sim_interfaces.srv import Push, Reset
 from sim_ros.names import ODOM_TOPIC, STREAMS, TF_TOPIC
-from sim_ros.session import RosSession, TopicRecorder, WaitTimeout
+from sim_ros.session import RESEND_S, RosSession, TopicRecorder, WaitTimeout
 
 CAMERA_FRAMES_KEPT = 3000  # camera images kept for camera.png (~0.7 GB at 320x240 at most)
 
@@ -171,7 +171,7 @@ class ScenarioRun:
         self._tick()
 
     def _recorder_keeps_up(self) -> None:
-        """Lock-stepped and recording the camera, wait until the recorder has the newest frame this run has.
+        """Lock-stepped and recording the camera, wait until the recorder has the newest frame this run has, and its info.
 
         The camera's writer keeps its last 4 frames (0.4 s of sim time at 10 Hz) for a reader that lags; a
         recorder process that fell further behind /sim, stepped as fast as possible on a loaded machine, lost
@@ -181,9 +181,10 @@ class ScenarioRun:
         images, mcap = self.camera_images, self.mcap
         if not self.lock_step or images is None or mcap is None or (latest := images.latest) is None:
             return
-        topic, frame_s = f"{self.session.namespace}/{self.camera_name}/image_raw", stamp_s(latest.header.stamp)
-        self.session.wait_for(lambda: mcap.status().latest_stamp_s.get(topic, -math.inf) >= frame_s - 1e-9,
-                              SERVICE_WALL_S, f"the recorder to take {topic} at {frame_s:.2f} s")
+        frame_s = stamp_s(latest.header.stamp)
+        topics = [f"{self.session.namespace}/{self.camera_name}/{name}" for name in ("image_raw", "camera_info")]
+        self.session.wait_for(lambda: all(mcap.status().latest_stamp_s.get(t, -math.inf) >= frame_s - 1e-9 for t in topics),
+                              SERVICE_WALL_S, f"the recorder to take the frame at {frame_s:.2f} s and its camera_info")
 
     def _elapsed(self) -> float:
         return self.now() - self.marks.get("start", 0.0)
@@ -261,11 +262,14 @@ class ScenarioRun:
                 raise StepFailure(f"the scenario ran past its timeout of {self.scenario.timeout:g} s of sim time")
 
     def reset(self, keyframe: str | None) -> None:
+        # Lock-stepped (/sim paused), sent again until answered (rmw drops an answer to a client not matched yet): the same state.
+        running = sum(1 for handle in self.goals.values() if not handle.done)  # each ends (SIM_FAULT)
         response = call_service(self.session, self._reset, Reset.Request(keyframe=keyframe or self.scenario.keyframe),
-                                "/sim/reset")
+                                "/sim/reset", resend_every_s=RESEND_S if self.lock_step else None)
         if not response.success:
             raise StepFailure(f"/sim/reset failed: {response.message}")
         self.time.reached(response.sim_time)
+        self.time.take_results(len(self.goals) - running, running)
 
     def goal_done(self, goal_id: str) -> bool:
         return self.goals[goal_id].done

@@ -126,15 +126,24 @@ class SimTime:
         if not response.success:
             raise StepFailure(f"/sim/step refused: {response.message}")
         self._sim_now = max(self._sim_now, response.sim_time)
-        if response.goals_ended:
-            # Goals ended in these steps: take their results before stepping on, so a goal's end is
-            # seen at the same sim time in every run. (Bounded: a goal of another client ends too.)
-            def arrived() -> bool:
-                return self._goals_done() >= done_before + response.goals_ended
-
-            with contextlib.suppress(WaitTimeout):
-                self.session.wait_for(arrived, GOAL_END_WALL_S, "the results of goals that ended")
+        self.take_results(done_before, response.goals_ended)
         return float(response.sim_time)
+
+    def take_results(self, done_before: int, ended: int) -> None:
+        """Lock-stepped: wait for the results of ``ended`` goals /sim ended (in a step, or by a reset) before stepping
+        on, so a goal's end is seen at the same sim time in every run. Bounded: a goal of another client ends too.
+
+        A reset's goals were not waited for: with 1 s strides, a loaded machine's server answered a walk that a reset
+        ended after the runner had stepped the 5 s that reset_mid_walk waits for it.
+        """
+        if not self.lock_step or ended <= 0:
+            return
+
+        def arrived() -> bool:
+            return self._goals_done() >= done_before + ended
+
+        with contextlib.suppress(WaitTimeout):
+            self.session.wait_for(arrived, GOAL_END_WALL_S, "the results of goals that ended")
 
     def steps_for(self, dt: float) -> int:
         """Whole control steps in about ``dt`` [s] of sim time, at least one."""
