@@ -32,10 +32,12 @@ STEP_RESEND_S = 2.0
 CHUNK_S = 0.02  # sim time advanced between checks of conditions on measures [s]
 # Sim time advanced at once when only goal ends (seen where they happen: /sim stops its step there) and
 # times are awaited [s]: fewer /sim/step round trips per sim second, the same numbers. As fast as possible, a
-# stride is 1 s of sim time: walk_2m recorded, lock-stepped on a warm bring-up, went from wall/sim 0.193 at 0.25 s
-# to 0.161 (medians of 4, alternated; 0.5 s: 0.170, 2 s: 0.151). Well within what /sim's writers keep for a reader
-# that lags, e.g. the recorder at the end of a burst (10 s of /imu; the runner waits for its streams at a run's end).
-STRIDE_S = 1.0
+# stride is 2 s of sim time: walk_2m recorded, lock-stepped on a warm bring-up, went from wall/sim 0.193 at 0.25 s
+# to 0.161 at 1 s (medians of 4, alternated; 0.5 s: 0.170, 2 s: 0.151); on 29 November 1 s against 2 s, alternated,
+# medians of 6: 0.173 -> 0.166. Well within what /sim's writers keep for a reader that lags, e.g. the recorder at
+# the end of a burst (1000 messages: 10 s of /imu, 10 s of /joint_states at a scenario's 100 Hz; the runner waits
+# for its streams at a run's end).
+STRIDE_S = 2.0
 # Paced (rtf > 0), or while a recorded camera is watched, a stride stays short: the sim moves in short jumps for
 # whoever watches it at real time, and the camera's writer keeps its last 4 frames (0.4 s of sim time at 10 Hz)
 # for the recorder, which the runner waits for after each step.
