@@ -9,6 +9,7 @@ The core's tests hold no ROS and no threads of their own, which is what makes th
 
 from __future__ import annotations
 
+import gc
 import os
 import sys
 import traceback
@@ -24,9 +25,15 @@ def in_fork(check: Callable[[], None]) -> str | None:
     """
     sys.stdout.flush()
     sys.stderr.flush()
+    # The garbage of earlier tests of this worker is collected here, not in the branch: on 29 November a branch
+    # crashed its worker with a segfault while "Garbage-collecting" (building its arm model), i.e. while freeing
+    # something it had only inherited, such as an earlier ROS test's handles, made with threads a fork does not
+    # copy. The branch then never collects what it was given (gc.freeze), only its own garbage.
+    gc.collect()
     read_fd, write_fd = os.pipe()
     pid = os.fork()
     if pid == 0:  # the branch
+        gc.freeze()
         code = 0
         try:
             os.close(read_fd)
