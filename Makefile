@@ -29,14 +29,15 @@ $(STAMPS)/project: $(STAMPS)/interfaces pyproject.toml package.xml tools/registe
 demo: setup
 	$(VENV)/bin/sim-demo
 
-# A worker per core and one more (at most 8), one test file each at a time (a file's bring-up stays in its worker), the
+# Two workers per core (at most 8), one test file each at a time (a file's bring-up stays in its worker), the
 # longest files first (tests/conftest.py orders them; xdist keeps that order); each worker has a ROS domain of its own.
-# The tests wait on sim time, discovery and real-time goals a good part of their wall time: on 2 cores (28 November,
-# /clock at 20 Hz) 2 workers took 9:07 (642 s of CPU), 3 took 6:54 (647 s) and 4 took 6:33 (681 s, the two cores
-# saturated and the README's commands 276 s instead of 198). Three workers once failed test_respawn (a restarted server
-# that no client reached: Fast DDS's shared-memory port of a killed process, eProsima/Fast-DDS#5053); bringup now
-# restarts a node on UDP only. TEST_WORKERS=0 runs everything in one process.
-TEST_WORKERS ?= $(shell n=$$(nproc 2>/dev/null || echo 1); echo $$(( n + 1 < 8 ? n + 1 : 8 )))
+# The tests wait on sim time, discovery and goals a good part of their wall time. On 2 cores (28 November, /clock at
+# 20 Hz) 2 workers took 9:07 (642 s of CPU), 3 took 6:54 (647 s) and 4 took 6:33 (681 s, the README's commands 276 s
+# instead of 198 at real time). On 29 November, the README's starts at rtf 3: 3 workers 6:40 (627 s), 4 workers 6:04
+# (637 s, the two cores busy 87% of the time). Three workers once failed test_respawn (a restarted server that no
+# client reached: Fast DDS's shared-memory port of a killed process, eProsima/Fast-DDS#5053); bringup now restarts a
+# node on UDP only. TEST_WORKERS=0 runs everything in one process.
+TEST_WORKERS ?= $(shell n=$$(nproc 2>/dev/null || echo 1); echo $$(( 2 * n < 8 ? 2 * n : 8 )))
 PYTEST_PARALLEL := $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder \
 	--max-worker-restart 2)
 
