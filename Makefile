@@ -10,7 +10,15 @@ export OPENBLAS_NUM_THREADS ?= 1
 
 .PHONY: setup lint demo test test-fast bench bench-sim bench-walk bench-arm bench-nav bench-idle bench-scenario bench-response bench-locomotion bench-sensors bench-soak bench-camera bench-fetch clean
 
+# Bytecode is written as Python writes it by default, also where PYTHONDONTWRITEBYTECODE is set (many containers, and
+# the machines this was measured on). With it set, Python reads .pyc files but writes none: every process compiled the
+# project's modules again at each start (~0.09 s of the 0.38 s of CPU /sim's imports take; `make test` starts ~330
+# nodes) and each test worker rewrote every test module (pytest's collection: 3.9 s -> 2.1 s). Set-up writes the
+# project's (only what changed, ~0.3 s), which the console scripts then read from any shell.
+unexport PYTHONDONTWRITEBYTECODE
+
 setup: $(STAMPS)/project
+	@$(PY) -m compileall -q sim_bridge robot_models nodes sim_ros sim_client tests benchmarks tools > /dev/null
 
 $(STAMPS)/deps: requirements.txt
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
