@@ -225,9 +225,11 @@ def test_a_run_after_the_world_was_replaced_gives_the_report_of_a_run_on_fresh_n
     options = RunOptions(out=tmp_path / "runs", quiet=True)
     assert course.rtf == 0.0  # the pace of the fresh run it is compared with
     fresh = fresh_runs(course.name, 0.0, 0)
-    with Bringups(io.StringIO(), quiet=True) as bringups:
+    said = io.StringIO()  # what the bring-ups say: why a new one was started, if one was
+    with Bringups(said) as bringups:
         shared: list[Any] = [run(s, options, io.StringIO(), bringups) for s in (mess, course)]
-        assert bringups.started == 1, "a run in another scene of the same robot loads that scene into the running nodes"
+        assert bringups.started == 1, ("a run in another scene of the same robot loads that scene into the running "
+                                       f"nodes; the bring-ups said:\n{said.getvalue()}")
     assert all(result.passed for result in (fresh, *shared)), [r.report for r in (fresh, *shared) if not r.passed]
     after = shared[1]
     assert after.report["started_at_sim_s"] == fresh.report["started_at_sim_s"]
