@@ -23,7 +23,7 @@ from sim_bridge.errors import InvalidGoalError
 from sim_bridge.skills import SkillHost, SkillRun, SkillStatus
 from sim_bridge.skills.host import refused_run
 from sim_interfaces.msg import SkillCommand, SkillState
-from sim_ros.names import SKILL_COMMAND_TOPIC, SKILL_QOS, SKILL_STATE_TOPIC
+from sim_ros.names import SKILL_COMMAND_TOPIC, SKILL_QOS, skill_state_topic
 from sim_ros.stamps import set_time
 
 HEARTBEAT_PERIOD_S = 0.2  # [s of wall time] the longest a running goal's state goes unpublished
@@ -50,7 +50,8 @@ class SkillBridge:
         self._context = context
         self._seen: collections.deque[tuple[str, int]] = collections.deque(maxlen=SEEN_COMMANDS)
         self._refused: list[SkillRun] = []
-        self._pub = node.create_publisher(SkillState, SKILL_STATE_TOPIC, SKILL_QOS)
+        # Every skill's topic from the start: a server offers its actions once /sim's writer of its skills is matched.
+        self._pubs = {name: node.create_publisher(SkillState, skill_state_topic(name), SKILL_QOS) for name in BINDINGS}
         node.create_subscription(SkillCommand, SKILL_COMMAND_TOPIC, self._on_command, SKILL_QOS,
                                  callback_group=ReentrantCallbackGroup())
         node.create_timer(HEARTBEAT_PERIOD_S, self._heartbeat, callback_group=ReentrantCallbackGroup(),
@@ -139,20 +140,24 @@ class SkillBridge:
         self._refused = []
         for host in set(self._hosts.values()):
             runs.extend(host.take_changed())
-        if runs and self._pub.get_subscription_count() > 0:
-            for run in runs:
-                self._pub.publish(self._state(run))
+        for run in runs:
+            if self._heard(run):
+                self._pubs[run.skill_name].publish(self._state(run))
         return sum(1 for run in runs if run.status.terminal)
+
+    def _heard(self, run: SkillRun) -> bool:
+        """Whether anyone subscribes to the states of ``run``'s skill (a goal of an unknown skill, refused, has no topic:
+        its refusal is in /sim's log)."""
+        publisher = self._pubs.get(run.skill_name)
+        return publisher is not None and publisher.get_subscription_count() > 0
 
     def publish_all(self) -> None:
         """Under the lock, at state_rate: every running goal, while anyone listens (ended ones were published as they ended)."""
-        if self._pub.get_subscription_count() == 0:
-            return
         self.publish_changed()
         for host in set(self._hosts.values()):
             for run in host.runs():
-                if run.status is SkillStatus.RUNNING:
-                    self._pub.publish(self._state(run))
+                if run.status is SkillStatus.RUNNING and self._heard(run):
+                    self._pubs[run.skill_name].publish(self._state(run))
 
     def _heartbeat(self) -> None:
         """Wall-clock: the state of every running goal (the same sim stamp while paused: no feedback is due)."""
@@ -162,12 +167,10 @@ class SkillBridge:
         if not self._lock.acquire(blocking=False):
             return
         try:
-            if self._pub.get_subscription_count() == 0:
-                return
             for host in set(self._hosts.values()):
                 for run in host.runs():
-                    if run.status is SkillStatus.RUNNING:
-                        self._pub.publish(self._liveness(run))
+                    if run.status is SkillStatus.RUNNING and self._heard(run):
+                        self._pubs[run.skill_name].publish(self._liveness(run))
         finally:
             self._lock.release()
 
