@@ -49,6 +49,10 @@ class SkillBridge:
         self._hosts = hosts
         self._context = context
         self._seen: collections.deque[tuple[str, int]] = collections.deque(maxlen=SEEN_COMMANDS)
+        # The last start, end or cancel state of those goals, published again when their START comes again: a server
+        # re-sends a START it has heard nothing of, e.g. because /sim published the goal's only states before its
+        # writer had matched the server's reader (a goal refused or preempted at once ended so for ever, SIM_FAULT).
+        self._changes: collections.OrderedDict[tuple[str, int], SkillState] = collections.OrderedDict()
         self._refused: list[SkillRun] = []
         # Every skill's topic from the start: a server offers its actions once /sim's writer of its skills is matched.
         self._pubs = {name: node.create_publisher(SkillState, skill_state_topic(name), SKILL_QOS) for name in BINDINGS}
@@ -79,8 +83,11 @@ class SkillBridge:
                 host.update_settings(msg.resource, msg.goal_seq, settings)
             return
         key = (msg.resource, msg.goal_seq)
-        if key in self._seen:
-            return  # a START sent again before its state was seen: already applied
+        if key in self._seen:  # a START sent again before its state was seen: applied once, its last state sent again
+            last = self._changes.get(key)
+            if last is not None and last.skill in self._pubs:
+                self._pubs[last.skill].publish(last)
+            return
         self._seen.append(key)
         now = self._sim.time
         binding = BINDINGS.get(msg.skill)
@@ -141,8 +148,12 @@ class SkillBridge:
         for host in set(self._hosts.values()):
             runs.extend(host.take_changed())
         for run in runs:
+            state = self._state(run)
+            self._changes[(run.resource, state.goal_seq)] = state
+            if len(self._changes) > SEEN_COMMANDS:
+                self._changes.popitem(last=False)
             if self._heard(run):
-                self._pubs[run.skill_name].publish(self._state(run))
+                self._pubs[run.skill_name].publish(state)
         return sum(1 for run in runs if run.status.terminal)
 
     def _heard(self, run: SkillRun) -> bool:

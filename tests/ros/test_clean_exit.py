@@ -31,8 +31,10 @@ def test_sim_node_and_servers_exit_cleanly_on_ctrl_c(client, robot):
             process.send_signal(signal.SIGINT)
         # Generous: the test is about a clean exit, not a fast one (two test workers share two cores).
         codes = [process.stop(timeout=30.0) for process in processes]
-    for process, code in zip(processes, codes, strict=False):
-        output = process.output()
+    outputs = [process.output() for process in processes]
+    for process in processes:
+        process.discard_log()  # their logs were files of their own in the temporary directory (left behind before)
+    for process, code, output in zip(processes, codes, outputs, strict=True):
         assert code == 0, f"{process.args[0]} exited with {code}:\n{output[-3000:]}"
         # An error raised while stopping (e.g. destroying the node), not the interrupt itself: Python may
         # report a KeyboardInterrupt that lands inside a finalizer ("Exception ignored in ...").
