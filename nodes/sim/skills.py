@@ -10,6 +10,7 @@ a server that hears nothing for much longer knows /sim has stopped or died.
 from __future__ import annotations
 
 import collections
+import time
 
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
@@ -27,6 +28,10 @@ from sim_ros.names import SKILL_COMMAND_TOPIC, SKILL_QOS, skill_state_topic
 from sim_ros.stamps import set_time
 
 HEARTBEAT_PERIOD_S = 0.2  # [s of wall time] the longest a running goal's state goes unpublished
+# [s of wall time] While the physics thread is inside one long control step (a fetch planning its reach and building
+# the arms' IK model on a loaded machine, a garbage collection), the heartbeat reports the running goals as the step
+# before it left them, for at most this long: a thread stuck longer lets the servers end the goals (SIM_FAULT).
+BUSY_STEP_S = 30.0
 SEEN_COMMANDS = 256  # recent (resource, goal_seq) starts remembered, so a re-sent START is applied once
 
 
@@ -53,6 +58,9 @@ class SkillBridge:
         # re-sends a START it has heard nothing of, e.g. because /sim published the goal's only states before its
         # writer had matched the server's reader (a goal refused or preempted at once ended so for ever, SIM_FAULT).
         self._changes: collections.OrderedDict[tuple[str, int], SkillState] = collections.OrderedDict()
+        # The running goals' liveness states as the physics thread last published them, and when [monotonic s].
+        self._alive: list[tuple[str, SkillState]] = []
+        self._alive_at = time.monotonic()
         self._refused: list[SkillRun] = []
         # Every skill's topic from the start: a server offers its actions once /sim's writer of its skills is matched.
         self._pubs = {name: node.create_publisher(SkillState, skill_state_topic(name), SKILL_QOS) for name in BINDINGS}
@@ -165,17 +173,24 @@ class SkillBridge:
     def publish_all(self) -> None:
         """Under the lock, at state_rate: every running goal, while anyone listens (ended ones were published as they ended)."""
         self.publish_changed()
+        alive = []
         for host in set(self._hosts.values()):
             for run in host.runs():
                 if run.status is SkillStatus.RUNNING and self._heard(run):
                     self._pubs[run.skill_name].publish(self._state(run))
+                    alive.append((run.skill_name, self._liveness(run)))
+        self._alive, self._alive_at = alive, time.monotonic()
 
     def _heartbeat(self) -> None:
         """Wall-clock: the state of every running goal (the same sim stamp while paused: no feedback is due)."""
         if not any(host.runs() for host in set(self._hosts.values())):
             return
-        # Never queue for the lock: if the physics thread holds it, it is stepping and publishes states.
+        # Never queue for the lock: if the physics thread holds it, it is stepping and publishes states; inside one long
+        # step it publishes none, and the last ones it left say /sim is alive (up to BUSY_STEP_S).
         if not self._lock.acquire(blocking=False):
+            if HEARTBEAT_PERIOD_S <= time.monotonic() - self._alive_at <= BUSY_STEP_S:
+                for skill, state in self._alive:
+                    self._pubs[skill].publish(state)
             return
         try:
             for host in set(self._hosts.values()):
