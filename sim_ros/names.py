@@ -48,21 +48,13 @@ def camera_info_topic(camera: str) -> str:
 
 # ----- /sim's side of the servers and device nodes ----------------------------------------------
 SKILL_COMMAND_TOPIC = "sim/skill_command"  # action servers -> /sim: START, CANCEL, UPDATE of a goal
-SKILL_STATE_TOPIC = "sim/skill_state"  # /sim -> action servers: each goal's status, feedback and result, one topic
-# per skill below it (skill_state_topic): a server hears its own skills' goals only
+SKILL_STATE_TOPIC = "sim/skill_state"  # /sim -> action servers: each goal's status, feedback and result
 HAND_SENSORS_TOPIC = "sim/hand_sensors"  # /sim -> /hand_sensors: raw wrist force/torque, hand speed and contact
 HAND_OFFSETS_TOPIC = "sim/hand_sensors/offsets"  # /hand_sensors -> /sim: the calibrated offsets (latched; wrenches only)
 HAND_OFFSETS_APPLIED_TOPIC = "sim/hand_sensors/offsets_applied"  # /sim -> /hand_sensors: the offsets /sim now subtracts (latched)
 BATTERY_TOPIC = "sim/battery"  # /sim -> /power: the battery drained in the control step
 BATTERY_CONFIG_TOPIC = "sim/battery_config"  # /power -> /sim: the battery model's settings (latched)
 WORLD_TOPIC = "sim/world"  # /sim -> the action servers: the scene loaded (latched simulation_interfaces WorldResource)
-
-
-def skill_state_topic(skill: str) -> str:
-    """The states of ``skill``'s goals (e.g. ``sim/skill_state/walk``). One topic for every skill made each server
-    take, decode and drop every other server's states: the arm server took 0.020 s of CPU per sim second of a
-    lock-stepped walk, 0.010 without the walk's states."""
-    return f"{SKILL_STATE_TOPIC}/{skill}"
 
 
 def camera_settings_topic(camera: str) -> str:

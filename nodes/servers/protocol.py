@@ -2,8 +2,8 @@
 
 An action server validates a goal and sends it, CDR-serialized as the action's own Goal message, in
 a ``SkillCommand`` (START, CANCEL, UPDATE) on ``/sim/skill_command``. ``/sim`` builds the skill from
-it (:data:`BINDINGS`), runs it in the control step and reports ``SkillState`` on its skill's topic
-(``/sim/skill_state/walk``, ...): the goal's sequence number, the reset epoch, the status, and the action's own
+it (:data:`BINDINGS`), runs it in the control step and reports ``SkillState`` on
+``/sim/skill_state``: the goal's sequence number, the reset epoch, the status, and the action's own
 Feedback and Result messages filled from the skill's measured values. A server only relays.
 
 Each binding says, for one action: its resource, its validation (run by the server before accepting

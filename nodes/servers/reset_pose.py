@@ -2,7 +2,7 @@
 
 The pose is reached by the ResetPose skill in ``/sim``'s control step
 (:mod:`sim_bridge.skills.reset_pose`), started over the goal protocol like any action's goal: a START
-on ``/sim/skill_command``, the outcome on ``/sim/skill_state/reset_pose``. It owns the legs, so a running Walk or
+on ``/sim/skill_command``, the outcome on ``/sim/skill_state``. It owns the legs, so a running Walk or
 NavigateToPose is preempted first (it ends PREEMPTED). The answer is success=true once every joint is
 within the tolerance of the default pose; success=false with the reason otherwise ("fallen: reset the
 simulation" for a fallen robot). Trigger is the standard type for a request without arguments that
@@ -28,7 +28,7 @@ from nodes.runtime.executor import wait_parked
 from sim_bridge.skills import LEGS
 from sim_interfaces.action import ResetPose
 from sim_interfaces.msg import SkillCommand, SkillState
-from sim_ros.names import SKILL_COMMAND_TOPIC, SKILL_QOS, skill_state_topic
+from sim_ros.names import SKILL_COMMAND_TOPIC, SKILL_QOS, SKILL_STATE_TOPIC
 
 ACK_TIMEOUT_S = 10.0  # wall seconds for /sim to report the goal it was sent
 RESEND_PERIOD_S = 0.1  # a START not yet reported is sent again (a message sent before discovery is lost)
@@ -54,7 +54,7 @@ class ResetPoseService:
         self._pending: dict[int, _Pending] = {}
         group = ReentrantCallbackGroup()
         self._commands = node.create_publisher(SkillCommand, SKILL_COMMAND_TOPIC, SKILL_QOS)
-        node.create_subscription(SkillState, skill_state_topic("reset_pose"), self._on_state, SKILL_QOS, callback_group=group)
+        node.create_subscription(SkillState, SKILL_STATE_TOPIC, self._on_state, SKILL_QOS, callback_group=group)
         node.create_service(Trigger, "reset_pose", self._on_reset_pose, callback_group=group)
         self._resend = node.create_timer(RESEND_PERIOD_S, self._watchdog, callback_group=group,
                                          clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -99,7 +99,7 @@ class ResetPoseService:
                 self._resend.cancel()
             for pending in waiting:
                 if now - pending.sent_at > ACK_TIMEOUT_S:
-                    pending.done.set_result((False, f"no answer from /sim on {skill_state_topic('reset_pose')} within "
+                    pending.done.set_result((False, f"no answer from /sim on {SKILL_STATE_TOPIC} within "
                                                     f"{ACK_TIMEOUT_S:g} s: is /sim running with a walking robot?"))
         for pending in waiting:
             if not pending.done.done():

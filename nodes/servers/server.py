@@ -36,7 +36,7 @@ from nodes.servers.world import follow_world
 from robot_models import RobotSpec
 from sim_bridge.errors import InvalidGoalError
 from sim_interfaces.msg import SkillCommand, SkillState
-from sim_ros.names import FEEDBACK_QOS, SKILL_COMMAND_TOPIC, SKILL_QOS, skill_state_topic
+from sim_ros.names import FEEDBACK_QOS, SKILL_COMMAND_TOPIC, SKILL_QOS, SKILL_STATE_TOPIC
 from sim_ros.stamps import seconds_of
 
 ACK_TIMEOUT_S = 10.0  # wall seconds for /sim to report a goal it was sent
@@ -248,20 +248,20 @@ class SkillActionServer:
             for goal in pending:
                 goal.last_heard = max(goal.last_heard, now - RESEND_PERIOD_S)
             return
-        action, topic = self.binding.action_type, skill_state_topic(self.binding.name)
+        action = self.binding.action_type
         for goal in pending:
             if goal.acked:
                 if now - goal.last_heard > SIM_SILENCE_S:
                     result = action.Result()
                     result.error_code = action.Result.SIM_FAULT
-                    result.error_msg = (f"/sim stopped answering: no state of this goal on {topic} for "
+                    result.error_msg = (f"/sim stopped answering: no state of this goal on {SKILL_STATE_TOPIC} for "
                                         f"{now - goal.last_heard:.1f} s of wall time (it reports running goals every "
                                         "0.2 s, paused or not); the sim node has stopped or died")
                     self._end(goal, SkillState.ABORTED, result)
             elif now - goal.sent_at > ACK_TIMEOUT_S:
                 result = action.Result()
                 result.error_code = action.Result.SIM_FAULT
-                result.error_msg = (f"no answer from /sim on {topic} within {ACK_TIMEOUT_S:g} s: "
+                result.error_msg = (f"no answer from /sim on {SKILL_STATE_TOPIC} within {ACK_TIMEOUT_S:g} s: "
                                     f"is /sim running with the {self.robot.name}?")
                 self._end(goal, SkillState.ABORTED, result)
             else:
@@ -335,7 +335,7 @@ def end_goals_before_exit(node: Node, executor: Executor) -> None:
 def skill_servers(node: Node, robot: RobotSpec, actions: dict[str, str], settings: Callable[[], dict[str, float]],
                   feedback_period: Callable[[], float],
                   on_scene: Callable[[RobotSpec], None] = lambda spec: None) -> dict[str, SkillActionServer]:
-    """Action servers for several skills of one node, each on its skill's state topic, sharing one command publisher.
+    """Action servers for several skills of one node, sharing one /sim/skill_state stream and one command publisher.
 
     Args:
         actions: skill name -> action name (e.g. ``{"walk": "/walk"}``).
@@ -350,16 +350,14 @@ def skill_servers(node: Node, robot: RobotSpec, actions: dict[str, str], setting
 
     # Subscribed for the node's life (discovery is done before the first goal, which then gets its
     # first feedback at once); /sim publishes states only while a goal runs or changes, so an idle
-    # server receives nothing, and a server hears only its own skills' goals.
-    group = ReentrantCallbackGroup()
-    states = [node.create_subscription(SkillState, skill_state_topic(skill), on_state, SKILL_QOS, callback_group=group)
-              for skill in actions]
+    # server receives nothing.
+    states = node.create_subscription(SkillState, SKILL_STATE_TOPIC, on_state, SKILL_QOS,
+                                      callback_group=ReentrantCallbackGroup())
     commands = node.create_publisher(SkillCommand, SKILL_COMMAND_TOPIC, SKILL_QOS)
     # The actions are offered once /sim is matched both ways, so a client that waited for the server
     # finds its first goal taken at once (not after discovery, which takes a while after start-up).
     deadline = time.monotonic() + SIM_MATCH_S
-    while ((commands.get_subscription_count() == 0 or any(state.get_publisher_count() == 0 for state in states))
-           and time.monotonic() < deadline):
+    while (commands.get_subscription_count() == 0 or states.get_publisher_count() == 0) and time.monotonic() < deadline:
         time.sleep(0.05)  # discovery runs in the middleware's threads; nothing here to spin yet
     if commands.get_subscription_count() == 0:
         node.get_logger().warning(f"/sim has not subscribed to {SKILL_COMMAND_TOPIC} within {SIM_MATCH_S:g} s; "

@@ -24,7 +24,7 @@ from sim_bridge.errors import InvalidGoalError
 from sim_bridge.skills import SkillHost, SkillRun, SkillStatus
 from sim_bridge.skills.host import refused_run
 from sim_interfaces.msg import SkillCommand, SkillState
-from sim_ros.names import SKILL_COMMAND_TOPIC, SKILL_QOS, skill_state_topic
+from sim_ros.names import SKILL_COMMAND_TOPIC, SKILL_QOS, SKILL_STATE_TOPIC
 from sim_ros.stamps import set_time
 
 HEARTBEAT_PERIOD_S = 0.2  # [s of wall time] the longest a running goal's state goes unpublished
@@ -59,11 +59,10 @@ class SkillBridge:
         # writer had matched the server's reader (a goal refused or preempted at once ended so for ever, SIM_FAULT).
         self._changes: collections.OrderedDict[tuple[str, int], SkillState] = collections.OrderedDict()
         # The running goals' liveness states as the physics thread last published them, and when [monotonic s].
-        self._alive: list[tuple[str, SkillState]] = []
+        self._alive: list[SkillState] = []
         self._alive_at = time.monotonic()
         self._refused: list[SkillRun] = []
-        # Every skill's topic from the start: a server offers its actions once /sim's writer of its skills is matched.
-        self._pubs = {name: node.create_publisher(SkillState, skill_state_topic(name), SKILL_QOS) for name in BINDINGS}
+        self._pub = node.create_publisher(SkillState, SKILL_STATE_TOPIC, SKILL_QOS)
         node.create_subscription(SkillCommand, SKILL_COMMAND_TOPIC, self._on_command, SKILL_QOS,
                                  callback_group=ReentrantCallbackGroup())
         node.create_timer(HEARTBEAT_PERIOD_S, self._heartbeat, callback_group=ReentrantCallbackGroup(),
@@ -93,8 +92,8 @@ class SkillBridge:
         key = (msg.resource, msg.goal_seq)
         if key in self._seen:  # a START sent again before its state was seen: applied once, its last state sent again
             last = self._changes.get(key)
-            if last is not None and last.skill in self._pubs:
-                self._pubs[last.skill].publish(last)
+            if last is not None:
+                self._pub.publish(last)
             return
         self._seen.append(key)
         now = self._sim.time
@@ -160,25 +159,21 @@ class SkillBridge:
             self._changes[(run.resource, state.goal_seq)] = state
             if len(self._changes) > SEEN_COMMANDS:
                 self._changes.popitem(last=False)
-            if self._heard(run):
-                self._pubs[run.skill_name].publish(state)
+            if self._pub.get_subscription_count() > 0:
+                self._pub.publish(state)
         return sum(1 for run in runs if run.status.terminal)
-
-    def _heard(self, run: SkillRun) -> bool:
-        """Whether anyone subscribes to the states of ``run``'s skill (a goal of an unknown skill, refused, has no topic:
-        its refusal is in /sim's log)."""
-        publisher = self._pubs.get(run.skill_name)
-        return publisher is not None and publisher.get_subscription_count() > 0
 
     def publish_all(self) -> None:
         """Under the lock, at state_rate: every running goal, while anyone listens (ended ones were published as they ended)."""
+        if self._pub.get_subscription_count() == 0:
+            return
         self.publish_changed()
         alive = []
         for host in set(self._hosts.values()):
             for run in host.runs():
-                if run.status is SkillStatus.RUNNING and self._heard(run):
-                    self._pubs[run.skill_name].publish(self._state(run))
-                    alive.append((run.skill_name, self._liveness(run)))
+                if run.status is SkillStatus.RUNNING:
+                    self._pub.publish(self._state(run))
+                    alive.append(self._liveness(run))
         self._alive, self._alive_at = alive, time.monotonic()
 
     def _heartbeat(self) -> None:
@@ -189,14 +184,16 @@ class SkillBridge:
         # step it publishes none, and the last ones it left say /sim is alive (up to BUSY_STEP_S).
         if not self._lock.acquire(blocking=False):
             if HEARTBEAT_PERIOD_S <= time.monotonic() - self._alive_at <= BUSY_STEP_S:
-                for skill, state in self._alive:
-                    self._pubs[skill].publish(state)
+                for state in self._alive:
+                    self._pub.publish(state)
             return
         try:
+            if self._pub.get_subscription_count() == 0:
+                return
             for host in set(self._hosts.values()):
                 for run in host.runs():
-                    if run.status is SkillStatus.RUNNING and self._heard(run):
-                        self._pubs[run.skill_name].publish(self._liveness(run))
+                    if run.status is SkillStatus.RUNNING:
+                        self._pub.publish(self._liveness(run))
         finally:
             self._lock.release()
 
