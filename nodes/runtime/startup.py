@@ -18,6 +18,7 @@ from collections.abc import Iterator, Sequence
 from typing import Any, NoReturn
 
 from nodes.runtime.parameters import ParameterSpec, StartupError, allowed
+from sim_ros.scheduling import yield_to_physics
 
 EXIT_BAD_START = 2
 
@@ -75,6 +76,7 @@ def init_ros(argv: Sequence[str], own_signals: bool = False) -> None:
         options = SignalHandlerOptions.NO
         signal.signal(signal.SIGINT, signal.default_int_handler)
         signal.signal(signal.SIGTERM, signal.default_int_handler)
+    yield_to_physics()  # this thread and those it starts (Fast DDS's) behind /sim's stepping (sim_ros.scheduling)
     try:
         rclpy.init(args=with_namespaced_clock(argv), signal_handler_options=options)
     except RCLError as error:

@@ -46,6 +46,7 @@ from nodes.sim.world import MadeEntities, WorldServices
 from sim_bridge import Pacer, Simulation
 from sim_bridge.skills import LEGS
 from sim_ros.names import MAX_STREAM_RATE_HZ, SIM_NODE
+from sim_ros.scheduling import physics_first
 from sim_ros.teardown import destroy_node_fully
 
 NODE_NAME = SIM_NODE
@@ -258,7 +259,8 @@ class SimNode(LifecycleNode):
     # ----- the physics loop --------------------------------------------------------------
     def _run(self) -> None:
         try:
-            self._loop()
+            with physics_first():  # ahead of the threads its publications wake (sim_ros.scheduling)
+                self._loop()
         except RCLError:
             if self.context.ok():
                 raise
@@ -348,7 +350,7 @@ class SimNode(LifecycleNode):
                 reset to its keyframe before this is raised.
         """
         assert self._stepper is not None
-        with self._lock:
+        with self._lock, physics_first():  # the stepping thread ahead of those its publications wake
             return self._stepper.advance_to(until_s, stop_at_goal_end)
 
     def legs_busy(self) -> bool:

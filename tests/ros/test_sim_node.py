@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import itertools
 import math
+import os
+import pathlib
 import time
 
 import numpy as np
@@ -53,6 +55,19 @@ def measured_rate(recorder, count: int, client, since: float = -math.inf) -> tup
     messages = fresh()[:count]
     stamps = [stamp_s(m) for m in messages]
     return (len(stamps) - 1) / (stamps[-1] - stamps[0]), messages
+
+
+def test_only_the_physics_thread_runs_under_the_normal_policy(g1):
+    """Fast DDS's threads and the executor's are SCHED_BATCH (sim_ros.scheduling): their wake-ups wait for a free core
+    instead of taking the stepping thread's."""
+    if not hasattr(os, "SCHED_BATCH"):
+        pytest.skip("Linux scheduling policies")
+    tasks = pathlib.Path(f"/proc/{g1.process.pid}/task")
+    policies = {int(t.name): ((t / "comm").read_text().strip(), os.sched_getscheduler(int(t.name))) for t in tasks.iterdir()}
+    dds = {tid: policy for tid, (name, policy) in policies.items() if name.startswith("dds.")}
+    assert dds and set(dds.values()) == {os.SCHED_BATCH}, policies
+    assert policies[g1.process.pid][1] == os.SCHED_BATCH, policies  # the main thread: the executor
+    assert any(policy == os.SCHED_OTHER for _, policy in policies.values()), policies  # the physics thread
 
 
 def test_joint_states_arrive_at_the_configured_rate_stamped_with_sim_time(client, g1):

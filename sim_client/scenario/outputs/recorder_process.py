@@ -157,8 +157,10 @@ class _Child:
         from rclpy.node import Node
 
         from sim_client.scenario.outputs.recording import McapRecorder  # (imports sim_ros: Fast DDS settings before rclpy.init)
+        from sim_ros.scheduling import yield_to_physics
 
         namespace = namespace.strip("/")
+        yield_to_physics()  # a consumer: its wake-ups wait for a free core, not take /sim's (sim_ros.scheduling)
         rclpy.init()
         # On its wall clock: the recording's times are the messages' own stamps (McapRecorder), so this node needs no
         # /clock subscription of its own (every /clock message would wake this process once more).
