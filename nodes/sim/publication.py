@@ -25,13 +25,22 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, String
 from tf2_msgs.msg import TFMessage
 
-from nodes.sim.serialized import ClockTemplate, JointStateTemplate, TemplateError
+from nodes.sim.serialized import (
+    ClockTemplate,
+    JointStateTemplate,
+    OdometryTemplate,
+    TemplateError,
+    TransformTemplate,
+    odometry_message,
+    stamp_of,
+    transform_message,
+)
 from nodes.sim.tf import TransformSet, link_pairs
 from sim_bridge import Simulation
 from sim_bridge.navigation import grid_from_obstacles
 from sim_bridge.urdf import robot_urdf
 from sim_interfaces.msg import ObjectStates
-from sim_ros.conversions import occupancy_grid_msg, set_pose
+from sim_ros.conversions import occupancy_grid_msg
 from sim_ros.names import (
     CLOCK_TOPIC,
     JOINT_STATES_TOPIC,
@@ -101,14 +110,14 @@ class Publications:
         except TemplateError as error:
             node.get_logger().warning(f"{error}; publishing {CLOCK_TOPIC} and {JOINT_STATES_TOPIC} the ordinary way")
             self._clock_template = self._joint_template = None
-        odom_frame = "odom" if robot.floating_base else "world"
-        self._odom_msg = Odometry()
-        self._odom_msg.header.frame_id = odom_frame
-        self._odom_msg.child_frame_id = robot.base_body
-        base_tf = TransformStamped()
-        base_tf.header.frame_id = odom_frame
-        base_tf.child_frame_id = robot.base_body
-        self._base_tf_msg = TFMessage(transforms=[base_tf])
+        self._odom_frame = "odom" if robot.floating_base else "world"
+        self._base_frame = robot.base_body
+        try:  # /odom and the odom -> base transform: serialized once, numbers patched in
+            self._odom_template: OdometryTemplate | None = OdometryTemplate(self._odom_frame, self._base_frame)
+            self._base_tf_template: TransformTemplate | None = TransformTemplate(self._odom_frame, self._base_frame)
+        except TemplateError as error:
+            node.get_logger().warning(f"{error}; publishing {ODOM_TOPIC} and the base's {TF_TOPIC} the ordinary way")
+            self._odom_template = self._base_tf_template = None
         self._object_tf = TransformSet(sim, [("world", name) for name in robot.objects])
         self._link_tf = TransformSet(sim, link_pairs(sim))
         if robot.floating_base:
@@ -214,25 +223,18 @@ class Publications:
         if not (odom_wanted or tf_wanted):
             return
         base = self._sim.base_state()
-        msg = self._odom_msg
-        set_time(msg.header.stamp, now)
-        set_pose(msg.pose.pose, base.pose.position, base.pose.orientation_wxyz)
-        v = base.linear_velocity_body.tolist()
-        w = base.angular_velocity_body.tolist()
-        twist = msg.twist.twist
-        twist.linear.x, twist.linear.y, twist.linear.z = v[0], v[1], v[2]
-        twist.angular.x, twist.angular.y, twist.angular.z = w[0], w[1], w[2]
+        position, orientation = base.pose.position, base.pose.orientation_wxyz
         if odom_wanted:
-            self._odom_pub.publish(msg)
-        if not tf_wanted:
-            return
-        transform = self._base_tf_msg.transforms[0]
-        set_time(transform.header.stamp, now)
-        position, orientation = msg.pose.pose.position, msg.pose.pose.orientation
-        translation, rotation = transform.transform.translation, transform.transform.rotation
-        translation.x, translation.y, translation.z = position.x, position.y, position.z
-        rotation.w, rotation.x, rotation.y, rotation.z = orientation.w, orientation.x, orientation.y, orientation.z
-        self._tf_pub.publish(self._base_tf_msg)
+            template = self._odom_template
+            self._odom_pub.publish(
+                template.serialize(now, position, orientation, base.linear_velocity_body, base.angular_velocity_body)
+                if template is not None else
+                odometry_message(self._odom_frame, self._base_frame, stamp_of(now), position, orientation,
+                                 base.linear_velocity_body, base.angular_velocity_body))
+        if tf_wanted:
+            base_tf = self._base_tf_template
+            self._tf_pub.publish(base_tf.serialize(now, position, orientation) if base_tf is not None else
+                                 transform_message(self._odom_frame, self._base_frame, stamp_of(now), position, orientation))
 
     def _publish_objects(self, now: float) -> None:
         """World -> object transforms on /tf and /objects, each while someone subscribes."""

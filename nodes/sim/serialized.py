@@ -20,10 +20,12 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
-from geometry_msgs.msg import Wrench, WrenchStamped
+from geometry_msgs.msg import TransformStamped, Wrench, WrenchStamped
+from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message, serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import BatteryState, Imu, JointState
+from tf2_msgs.msg import TFMessage
 
 from sim_interfaces.msg import HandSensors
 
@@ -188,6 +190,34 @@ def hand_sensors_message(names: Sequence[str], frame_ids: Sequence[str], stamp: 
     return msg
 
 
+def odometry_message(frame_id: str, child_frame_id: str, stamp: Stamp, position: Numbers, orientation_wxyz: Numbers,
+                     linear_velocity: Numbers, angular_velocity: Numbers) -> Odometry:
+    """nav_msgs/Odometry: the pose of ``child_frame_id`` in ``frame_id`` (position [m], orientation w first) and its
+    twist in ``child_frame_id`` (linear [m/s], angular [rad/s]); covariances zero (unknown)."""
+    msg = Odometry(child_frame_id=child_frame_id)
+    msg.header.frame_id = frame_id
+    _set_stamp(msg, stamp)
+    pose, twist = msg.pose.pose, msg.twist.twist
+    pose.position.x, pose.position.y, pose.position.z = (float(v) for v in position)
+    q = pose.orientation
+    q.w, q.x, q.y, q.z = (float(v) for v in orientation_wxyz)
+    twist.linear.x, twist.linear.y, twist.linear.z = (float(v) for v in linear_velocity)
+    twist.angular.x, twist.angular.y, twist.angular.z = (float(v) for v in angular_velocity)
+    return msg
+
+
+def transform_message(frame_id: str, child_frame_id: str, stamp: Stamp, translation: Numbers,
+                      rotation_wxyz: Numbers) -> TFMessage:
+    """tf2_msgs/TFMessage with one transform: ``child_frame_id`` in ``frame_id`` (translation [m], rotation w first)."""
+    transform = TransformStamped(child_frame_id=child_frame_id)
+    transform.header.frame_id = frame_id
+    _set_stamp(transform, stamp)
+    t, r = transform.transform.translation, transform.transform.rotation
+    t.x, t.y, t.z = (float(v) for v in translation)
+    r.w, r.x, r.y, r.z = (float(v) for v in rotation_wxyz)
+    return TFMessage(transforms=[transform])
+
+
 BATTERY_FIELDS = ("voltage", "current", "charge", "capacity", "design_capacity", "percentage")
 
 
@@ -267,7 +297,10 @@ class _Patched:
             for name, view in self.views.items():
                 view[:] = values[name]
                 values[name] = view.astype(bool if view.dtype == bool else float)  # as the bytes hold them
-            if self.bytes_at(stamp_s) != serialize_message(self._build(stamp_of(stamp_s), values)):
+            # Compared as messages: the alignment padding after a string is not written by rclpy's serializer (a
+            # fresh serialization of an Odometry once carried a 1 where the template's padding held 0).
+            want = self._build(stamp_of(stamp_s), values)
+            if deserialize_message(self.bytes_at(stamp_s), type(want)) != want:
                 raise TemplateError(f"{self._what} template failed its self-check")
         for view in self.views.values():
             view[:] = 0
@@ -393,4 +426,59 @@ class BatteryStateTemplate:
         """The message bytes at sim time ``stamp_s`` [s] (units as :func:`battery_message`)."""
         for view, value in zip(self._views, (voltage, current, charge, capacity, design_capacity, percentage), strict=True):
             view[0] = value
+        return self._patched.bytes_at(stamp_s)
+
+
+class OdometryTemplate:
+    """nav_msgs/Odometry of :func:`odometry_message` in fixed frames; stamp, pose and twist patched.
+
+    Raises:
+        TemplateError: the layout could not be located or verified.
+    """
+
+    _RUNS: ClassVar[dict[str, tuple[str, int]]] = {  # in the message's order; the quaternion is x, y, z, w there
+        "position": ("<f8", 3), "orientation_xyzw": ("<f8", 4), "linear": ("<f8", 3), "angular": ("<f8", 3)}
+
+    def __init__(self, frame_id: str, child_frame_id: str) -> None:
+        def build(stamp: Stamp, v: Values) -> Odometry:
+            x, y, z, w = v["orientation_xyzw"]
+            return odometry_message(frame_id, child_frame_id, stamp, v["position"], (w, x, y, z), v["linear"], v["angular"])
+
+        self._patched = _Patched("Odometry", build, self._RUNS)
+        views = self._patched.views
+        self._position, self._orientation = views["position"], views["orientation_xyzw"]
+        self._linear, self._angular = views["linear"], views["angular"]
+
+    def serialize(self, stamp_s: float, position: np.ndarray, orientation_wxyz: np.ndarray, linear_velocity: np.ndarray,
+                  angular_velocity: np.ndarray) -> bytes:
+        """The message bytes at sim time ``stamp_s`` [s] (units as :func:`odometry_message`)."""
+        self._position[:] = position
+        self._orientation[:3] = orientation_wxyz[1:]
+        self._orientation[3] = orientation_wxyz[0]
+        self._linear[:] = linear_velocity
+        self._angular[:] = angular_velocity
+        return self._patched.bytes_at(stamp_s)
+
+
+class TransformTemplate:
+    """tf2_msgs/TFMessage of :func:`transform_message` (one transform between fixed frames); stamp, translation and
+    rotation patched.
+
+    Raises:
+        TemplateError: the layout could not be located or verified.
+    """
+
+    def __init__(self, frame_id: str, child_frame_id: str) -> None:
+        def build(stamp: Stamp, v: Values) -> TFMessage:
+            x, y, z, w = v["rotation_xyzw"]
+            return transform_message(frame_id, child_frame_id, stamp, v["translation"], (w, x, y, z))
+
+        self._patched = _Patched("TFMessage", build, {"translation": ("<f8", 3), "rotation_xyzw": ("<f8", 4)})
+        self._translation, self._rotation = self._patched.views["translation"], self._patched.views["rotation_xyzw"]
+
+    def serialize(self, stamp_s: float, translation: np.ndarray, rotation_wxyz: np.ndarray) -> bytes:
+        """The message bytes at sim time ``stamp_s`` [s] (translation [m], rotation w first)."""
+        self._translation[:] = translation
+        self._rotation[:3] = rotation_wxyz[1:]
+        self._rotation[3] = rotation_wxyz[0]
         return self._patched.bytes_at(stamp_s)

@@ -1,5 +1,6 @@
-"""The pre-serialized templates (/joint_states, /clock and /sim's sensor streams) give the same bytes' meaning as
-rclpy's own path: each template's bytes, deserialized, equal a message built field by field for random values."""
+"""The pre-serialized templates (/joint_states, /clock, /odom, the base's /tf and /sim's sensor streams) give the same
+bytes' meaning as rclpy's own path: each template's bytes, deserialized, equal a message built field by field for random
+values."""
 
 from __future__ import annotations
 
@@ -10,13 +11,15 @@ import mujoco
 import numpy as np
 import pytest
 import rclpy
-from geometry_msgs.msg import Wrench, WrenchStamped
+from geometry_msgs.msg import TransformStamped, Wrench, WrenchStamped
+from nav_msgs.msg import Odometry
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message, serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import BatteryState, Imu, JointState
+from tf2_msgs.msg import TFMessage
 
 import nodes.sim.sensors
 import robot_models
@@ -27,12 +30,16 @@ from nodes.sim.serialized import (
     HandSensorsTemplate,
     ImuTemplate,
     JointStateTemplate,
+    OdometryTemplate,
     TemplateError,
+    TransformTemplate,
     WrenchStampedTemplate,
     battery_message,
     hand_sensors_message,
     imu_message,
+    odometry_message,
     stamp_of,
+    transform_message,
     wrench_stamped_message,
 )
 from sim_bridge import Simulation, Slot
@@ -138,6 +145,59 @@ def test_wrench_stamped_template_equals_a_message_built_field_by_field():
         assert got == want
         assert raw == serialize_message(want)
         assert wrench_stamped_message("left_sole", stamp_of(stamp), force, torque) == want
+
+
+def _unit_quaternion(rng: np.random.Generator) -> np.ndarray:
+    q = rng.normal(size=4)
+    return q / np.linalg.norm(q)
+
+
+def test_odometry_template_equals_a_message_built_field_by_field():
+    rng = np.random.default_rng(13)
+    template = OdometryTemplate("odom", "pelvis")
+    for stamp in STAMPS:
+        position, orientation = rng.normal(size=3) * 5, _unit_quaternion(rng)
+        linear, angular = rng.normal(size=3), rng.normal(size=3)
+        raw = template.serialize(stamp, position, orientation, linear, angular)
+        got = deserialize_message(raw, Odometry)
+
+        want = Odometry(child_frame_id="pelvis")
+        want.header.frame_id = "odom"
+        _set_stamp(want, stamp)
+        pose, twist = want.pose.pose, want.twist.twist
+        pose.position.x, pose.position.y, pose.position.z = (float(v) for v in position)
+        q = pose.orientation
+        q.w, q.x, q.y, q.z = (float(v) for v in orientation)
+        twist.linear.x, twist.linear.y, twist.linear.z = (float(v) for v in linear)
+        twist.angular.x, twist.angular.y, twist.angular.z = (float(v) for v in angular)
+
+        assert (got.header.frame_id, got.child_frame_id) == ("odom", "pelvis")
+        assert _stamp_s(got) == pytest.approx(stamp, abs=1e-9)
+        assert (got.pose.pose.orientation.w, got.pose.pose.orientation.x) == (orientation[0], orientation[1])
+        assert not any(got.pose.covariance) and not any(got.twist.covariance)
+        assert got == want  # not byte for byte: rclpy leaves the padding after child_frame_id unwritten
+        assert odometry_message("odom", "pelvis", stamp_of(stamp), position, orientation, linear, angular) == want
+
+
+def test_transform_template_equals_a_message_built_field_by_field():
+    rng = np.random.default_rng(14)
+    template = TransformTemplate("odom", "pelvis")
+    for stamp in STAMPS:
+        translation, rotation = rng.normal(size=3) * 5, _unit_quaternion(rng)
+        raw = template.serialize(stamp, translation, rotation)
+        got = deserialize_message(raw, TFMessage)
+
+        transform = TransformStamped(child_frame_id="pelvis")
+        transform.header.frame_id = "odom"
+        _set_stamp(transform, stamp)
+        t, r = transform.transform.translation, transform.transform.rotation
+        t.x, t.y, t.z = (float(v) for v in translation)
+        r.w, r.x, r.y, r.z = (float(v) for v in rotation)
+        want = TFMessage(transforms=[transform])
+
+        assert len(got.transforms) == 1 and got.transforms[0].transform.rotation.w == rotation[0]
+        assert got == want  # not byte for byte: rclpy leaves the padding after child_frame_id unwritten
+        assert transform_message("odom", "pelvis", stamp_of(stamp), translation, rotation) == want
 
 
 @pytest.mark.parametrize("robot", robot_models.ROBOT_NAMES)
