@@ -47,23 +47,37 @@ from sim_ros import processes  # noqa: E402
 HANG_DIR_VARIABLE = "SIM_TEST_HANG_DIR"  # the folder where a hung test's stacks are written (workers inherit it)
 TEST_WATCHDOG_S = float(os.environ.get("SIM_TEST_WATCHDOG_S", "600"))  # [s] wall: a test (set-up to tear-down) longer is hung
 
-# The files that keep a worker busy longest, longest first (45 s to 8 min each, measured one at a time on a loaded
-# 2-core machine; the ten slowest tests are printed at the end of every run). `make test` hands whole files to its workers in
-# collection order (--dist loadfile --no-loadscope-reorder): a long file handed out last keeps one worker running
-# alone while the other has finished. Every other file follows in its usual order.
+# The files that keep a worker busy longest, longest first: their wall time in a whole `make test` on a fresh clone
+# (2 cores, four workers; 29 November: 15-160 s each, the ten slowest tests are printed at the end of every run).
+# `make test` hands whole files to its workers in collection order (--dist loadfile --no-loadscope-reorder): a long
+# file handed out last keeps one worker running alone while the others have finished (test_watchdog, mostly waiting,
+# was handed out last and ran alone for its last 25 s). Every other file follows in its usual order.
 LONGEST_FIRST = (
-    "tests/scenarios/test_runs.py",
     "tests/ros/test_readme_commands.py",
     "tests/scenarios/test_determinism.py",
-    "tests/core/test_fetch.py",
-    "tests/ros/test_g1_fetch.py",
-    "tests/scenarios/test_pictures.py",
-    "tests/ros/test_locomotion_server.py",
-    "tests/ros/test_reset_during_goals.py",
-    "tests/scenarios/test_cli.py",
-    "tests/ros/test_g1_tables.py",
+    "tests/scenarios/test_runs.py",
     "tests/scenarios/test_sweep.py",
+    "tests/ros/test_respawn.py",
+    "tests/test_watchdog.py",
+    "tests/ros/test_server_faults.py",
+    "tests/ros/test_g1_fetch.py",
+    "tests/ros/test_locomotion_server.py",
+    "tests/core/test_one_hand_fetch.py",
+    "tests/scenarios/test_cli.py",
+    "tests/ros/test_arm_server.py",
+    "tests/core/test_one_hand_cancel.py",
+    "tests/scenarios/test_pictures.py",
     "tests/ros/test_namespaces.py",
+    "tests/core/test_fetch.py",
+    "tests/ros/test_reset_during_goals.py",
+    "tests/ros/test_bursts.py",
+    "tests/ros/test_humanoid_sensors.py",
+    "tests/ros/test_sim_node.py",
+    "tests/ros/test_g1_tables.py",
+    "tests/ros/test_navigation.py",
+    "tests/ros/test_console_scripts.py",
+    "tests/ros/test_walking_speed_live.py",
+    "tests/core/test_locomotion.py",
     "tests/core/test_one_hand.py",
 )
 
