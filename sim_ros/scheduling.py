@@ -1,4 +1,4 @@
-"""Which threads the operating system runs first: the physics step ahead of the threads that wait on it.
+"""Which threads the operating system runs first: a lock-stepped simulation's stepping thread ahead of the rest.
 
 A lock-stepped run is as fast as ``/sim``'s physics thread, which steps, then publishes each stream. Every
 publication wakes a thread somewhere: Fast DDS's event thread of ``/sim`` itself (its reliable writers' timers),
@@ -6,43 +6,58 @@ the receive threads of the runner, the recorder and the servers. Linux runs a wo
 core from a thread that has used more CPU (the physics thread always has), so the physics thread was taken off
 its core ~2000 times a second of wall time in a recorded walk_2m on 2 cores.
 
-Every thread of the project's processes (the nodes, the scenario recorder) is made ``SCHED_BATCH``: it still
-gets its fair share of the CPU, but its wake-up no longer takes a core from a running thread, it waits for
-the next scheduler tick or a free core (a few milliseconds at most). ``/sim``'s stepping thread runs under the
-normal policy (``SCHED_OTHER``) while it steps. Neither needs privileges; ros2_control gives its update loop a
+With ``SIM_SCHEDULING=batch`` every thread of the project's nodes is made ``SCHED_BATCH``: it keeps its fair share
+of the CPU, but its wake-up no longer takes a core from a running thread; it waits for a free core or the next
+scheduler tick. ``/sim``'s stepping thread runs under the normal policy (``SCHED_OTHER``) while it steps. Neither
+needs privileges. The scenario runner starts its bring-ups so (:func:`lock_step_environment`): they are
+lock-stepped, nothing waits on them but the runner. A bring-up that runs free keeps the normal policy (the
+default, ``fair``): overloaded (four G1 bring-ups at rtf 0 with storms of goals on 2 cores), its servers answered
+late with batch threads (4 of 24 storm tests failed against 1 of 20). ros2_control gives its update loop a
 real-time priority where it may, which a simulation stepping as fast as possible must not have (it would starve
-the rest of the machine).
-
-``SIM_SCHEDULING=fair`` leaves every thread under the normal policy (the comparison in ``make bench-scenario``).
-Where the policies do not exist (not Linux) nothing changes.
+the rest of the machine). Where the policies do not exist (not Linux) nothing changes.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 
-SCHEDULING_VARIABLE = "SIM_SCHEDULING"  # "fair": no thread is made SCHED_BATCH
+SCHEDULING_VARIABLE = "SIM_SCHEDULING"  # "batch": the nodes' threads SCHED_BATCH but /sim's stepping; "fair" (default)
+BATCH = "batch"
 
 
 def enabled() -> bool:
-    """Whether the project's background threads yield to the physics thread (``SIM_SCHEDULING`` is not ``fair``)."""
-    return os.environ.get(SCHEDULING_VARIABLE, "").strip().lower() != "fair" and hasattr(os, "SCHED_BATCH")
+    """Whether this process's threads yield to the stepping thread (``SIM_SCHEDULING=batch``, on Linux)."""
+    return os.environ.get(SCHEDULING_VARIABLE, "").strip().lower() == BATCH and hasattr(os, "SCHED_BATCH")
 
 
-def _set_policy(policy: int) -> bool:
+def lock_step_environment(environment: Mapping[str, str]) -> dict[str, str]:
+    """``environment`` for a lock-stepped bring-up: ``SIM_SCHEDULING=batch`` unless it names a policy already."""
+    chosen = dict(environment)
+    if not chosen.get(SCHEDULING_VARIABLE, "").strip():
+        chosen[SCHEDULING_VARIABLE] = BATCH
+    return chosen
+
+
+def _set_policy(policy: int, thread_id: int = 0) -> bool:
     try:
-        os.sched_setscheduler(0, policy, os.sched_param(0))  # the calling thread (Linux: per thread)
+        os.sched_setscheduler(thread_id, policy, os.sched_param(0))  # one thread (Linux: 0 = the calling one)
     except OSError:
         return False
     return True
 
 
 def yield_to_physics() -> bool:
-    """Make the calling thread ``SCHED_BATCH``, and with it every thread it starts from now on (Fast DDS's threads,
-    if called before ``rclpy.init``); ``False`` if it could not be (disabled, or refused)."""
-    return enabled() and _set_policy(os.SCHED_BATCH)
+    """With ``SIM_SCHEDULING=batch``, make every thread of this process ``SCHED_BATCH`` (those imports started too),
+    and with them every thread started from now on (Fast DDS's, if called before ``rclpy.init``); ``False`` if the
+    calling thread was not made so (not asked, or refused)."""
+    if not enabled() or not _set_policy(os.SCHED_BATCH):
+        return False
+    with contextlib.suppress(OSError):
+        for task in os.listdir("/proc/self/task"):
+            _set_policy(os.SCHED_BATCH, int(task))
+    return True
 
 
 @contextlib.contextmanager

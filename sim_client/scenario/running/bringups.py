@@ -15,6 +15,7 @@ starts its own.
 
 from __future__ import annotations
 
+import os
 import pathlib
 import shutil
 import signal
@@ -31,6 +32,7 @@ from sim_client.scenario.model.schema import Scenario
 from sim_client.scenario.running.run_clients import RunClients
 from sim_client.scenario.running.sim_time import SERVICE_WALL_S, StepFailure
 from sim_ros.processes import ChildProcess
+from sim_ros.scheduling import lock_step_environment
 from sim_ros.session import RosSession, WaitTimeout
 from simulation_interfaces.msg import Result
 from simulation_interfaces.srv import LoadWorld, ResetSimulation
@@ -243,7 +245,8 @@ class Bringups:
         self.started += 1
         log_dir = pathlib.Path(self._logs.name) / str(self.started)
         self._say(f"starting bring-up {self.started}: {' '.join(args)}")
-        process = ChildProcess(args, log_dir)
+        # Lock-stepped: its nodes' threads yield to /sim's stepping thread (sim_ros.scheduling).
+        process = ChildProcess(args, log_dir, env=lock_step_environment(os.environ))
         session = RosSession("scenario_runner", use_sim_time=True, namespace=namespace)
         self.current = Bringup(key, process, session, RunClients(session))
         return self.current
