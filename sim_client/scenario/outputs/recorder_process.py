@@ -31,6 +31,8 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+from sim_ros.scheduling import lock_step_environment
+
 DISCOVER_EVERY_S = 0.5  # [s of wall time] the child looks for new topics this often
 ANSWER_WALL_S = 30.0  # [s of wall time] the runner waits this long for an answer (a close writes the file's index)
 EXIT_WALL_S = 10.0  # [s of wall time] ... and this long for the child to exit after closing
@@ -59,18 +61,20 @@ class RecordingProcess:
         exclude: topics (full names) not to record.
         namespace: the bring-up's namespace ("" = the root); only its topics are recorded.
         log_path: where the child's stderr goes.
+        lock_step: the run is lock-stepped: the child's threads are SCHED_BATCH (``sim_ros.scheduling``).
     """
 
     def __init__(self, path: pathlib.Path, exclude: tuple[str, ...] = (), namespace: str = "",
-                 log_path: pathlib.Path | None = None) -> None:
+                 log_path: pathlib.Path | None = None, lock_step: bool = False) -> None:
         self.path = path
         self.log_path = log_path or path.with_name("recorder.log")
         args = [sys.executable, "-m", __name__, "--out", str(path), "--namespace", namespace]
         for topic in exclude:
             args += ["--exclude", topic]
         with open(self.log_path, "wb") as log:
-            self._process = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=log,
-                                             env=dict(os.environ))
+            # Lock-stepped, a consumer nobody waits on mid-run: its threads yield to /sim's stepping (sim_ros.scheduling).
+            env = lock_step_environment(os.environ) if lock_step else dict(os.environ)
+            self._process = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=log, env=env)
         self._buffer = b""
         self.final: RecordingStatus | None = None  # the status answered by close()
 

@@ -103,7 +103,7 @@ class ScenarioRun:
         """Wait for the sim (and servers), calibrate stepping, reset to the keyframe."""
         if self.options.record:  # started first: its start-up overlaps the waits for the nodes below
             self.mcap = RecordingProcess(self.folder / "recording.mcap", exclude=self._unwatched,
-                                         namespace=self.session.namespace)
+                                         namespace=self.session.namespace, lock_step=self.lock_step)
         self.session.wait_for(self._reset.service_is_ready, STARTUP_WALL_S, "the /sim node (service /sim/reset)")
         if self.mcap is not None:
             self.mcap.discover()
