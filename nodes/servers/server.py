@@ -88,6 +88,17 @@ class _Goal:
     cancel_asked: bool = False
 
 
+def feedback_due(last_s: float, last_milestone: int, stamp_s: float, milestone: int, period_s: float) -> bool:
+    """Whether a running goal's state stamped ``stamp_s`` [s of sim time] is relayed as feedback, the last relayed one
+    stamped ``last_s``: at ``period_s``, the first at once, and at every milestone (e.g. a new stage); never one older
+    than the last relayed. /sim answers a START sent again with the goal's first state: a server that re-sent its START
+    (at rtf 0 its sim-time watchdog fires every few ms of wall time) got that state after later ones, and relayed a
+    fetch's stage going back from LIFT to APPROACH."""
+    if stamp_s < last_s:
+        return False
+    return stamp_s - last_s >= period_s or milestone != last_milestone
+
+
 class SkillActionServer:
     """Serves ``action_name`` for one binding of the goal protocol.
 
@@ -199,8 +210,7 @@ class SkillActionServer:
             if not state.feedback:  # /sim's wall-clock liveness report: nothing to relay
                 return
             now = seconds_of(state.header.stamp)
-            due = now - goal.last_feedback >= self._feedback_period() or state.milestone != goal.milestone
-            if due:  # at feedback_rate, the first at once, and at every milestone (e.g. a new stage)
+            if feedback_due(goal.last_feedback, goal.milestone, now, state.milestone, self._feedback_period()):
                 goal.last_feedback, goal.milestone = now, state.milestone
                 if state.feedback:
                     goal.handle.publish_feedback(deserialize_message(bytes(state.feedback), action.Feedback))
