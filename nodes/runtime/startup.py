@@ -76,7 +76,7 @@ def init_ros(argv: Sequence[str], own_signals: bool = False) -> None:
         options = SignalHandlerOptions.NO
         signal.signal(signal.SIGINT, signal.default_int_handler)
         signal.signal(signal.SIGTERM, signal.default_int_handler)
-    yield_to_physics()  # this thread and those it starts (Fast DDS's) behind /sim's stepping (sim_ros.scheduling)
+    yield_to_physics()  # with SIM_SCHEDULING=batch: this process's threads, and Fast DDS's to come, behind /sim's stepping
     try:
         rclpy.init(args=with_namespaced_clock(argv), signal_handler_options=options)
     except RCLError as error:
